@@ -1,0 +1,161 @@
+//! Where photons are born: a light chosen in proportion to its power, a wavelength by inverse
+//! CDF of its spectral power, an origin uniform by area, a direction from its distribution.
+//! Every photon carries the same power, Φ_total/N, so the emission estimator has zero variance
+//! in power and all the noise is in where the photons go.
+
+use glam::Vec3A;
+
+use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::sampling::{
+    cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle,
+    Discrete, Sampler,
+};
+use crate::scene::{Distribution, LightShape, Scene};
+use crate::spectrum::SpectralSampler;
+
+enum Origin {
+    /// Triangles of the light's surface, chosen by area.
+    Area {
+        prims: Vec<u32>,
+        pick: Discrete,
+    },
+    Point {
+        position: Vec3A,
+        axis: Vec3A,
+    },
+}
+
+struct EmitLight {
+    origin: Origin,
+    distribution: Distribution,
+    spectrum: Option<SpectralSampler>,
+}
+
+/// A photon at birth.
+#[derive(Clone, Copy, Debug)]
+pub struct Birth {
+    pub light: usize,
+    /// Exact sampled point on the light (for splatting), and the ray origin offset off its surface.
+    pub point: Vec3A,
+    pub origin: Vec3A,
+    pub dir: Vec3A,
+    /// Front normal of the emitting triangle; zero for a point light.
+    pub normal: Vec3A,
+    /// The emitting triangle, which the first ray must not hit again.
+    pub prim: u32,
+    /// Wavelength in nm (spectral transport only; NaN in grey transport).
+    pub lambda_nm: f64,
+}
+
+pub struct Emitter {
+    pick: Discrete,
+    lights: Vec<EmitLight>,
+    pub total_power_w: f64,
+}
+
+impl Emitter {
+    pub fn new(scene: &Scene) -> Self {
+        let range = scene.simulation.wavelength_range_nm;
+        let geo = &scene.geometry;
+        let lights = scene
+            .lights
+            .iter()
+            .map(|l| {
+                let origin = match &l.shape {
+                    LightShape::Area { surface } => {
+                        let prims: Vec<u32> = (0..geo.len() as u32)
+                            .filter(|&p| geo.surface[p as usize] == *surface as u32)
+                            .collect();
+                        let areas: Vec<f64> = prims.iter().map(|&p| geo.area(p as usize)).collect();
+                        Origin::Area {
+                            pick: Discrete::new(&areas),
+                            prims,
+                        }
+                    }
+                    LightShape::Point { position, axis } => Origin::Point {
+                        position: position.as_vec3a(),
+                        axis: axis.as_vec3a().normalize(),
+                    },
+                };
+                EmitLight {
+                    origin,
+                    distribution: l.distribution,
+                    spectrum: SpectralSampler::new(&l.spectrum, range),
+                }
+            })
+            .collect();
+        let powers: Vec<f64> = scene.lights.iter().map(|l| l.power_w).collect();
+        Emitter {
+            pick: Discrete::new(&powers),
+            lights,
+            total_power_w: powers.iter().sum(),
+        }
+    }
+
+    /// Samples one photon. With `SPECTRAL` false no wavelength is drawn.
+    #[inline]
+    pub fn emit<const SPECTRAL: bool>(
+        &self,
+        geo: &crate::geometry::Geometry,
+        s: &mut Sampler,
+    ) -> Birth {
+        let light = self.pick.sample(s.uniform());
+        let l = &self.lights[light];
+        let lambda_nm = if SPECTRAL {
+            // The loader guarantees a positive spectral integral, so a sampler exists.
+            l.spectrum
+                .as_ref()
+                .map_or(f64::NAN, |sp| sp.sample(s.uniform()))
+        } else {
+            f64::NAN
+        };
+        match &l.origin {
+            Origin::Area { prims, pick } => {
+                let prim = prims[pick.sample(s.uniform())];
+                let b = uniform_triangle(s.uniform_f32(), s.uniform_f32());
+                let hit = crate::geometry::Hit { t: 0.0, prim, b };
+                let (point, err) = geo.hit_point(&hit);
+                let normal = geo.normals[prim as usize];
+                let dir = direction(l.distribution, normal, s);
+                let origin = offset_ray_origin(point, err, normal, dir);
+                Birth {
+                    light,
+                    point,
+                    origin,
+                    dir,
+                    normal,
+                    prim,
+                    lambda_nm,
+                }
+            }
+            Origin::Point { position, axis } => {
+                let dir = match l.distribution {
+                    Distribution::Isotropic => uniform_sphere(s.uniform_f32(), s.uniform_f32()),
+                    other => direction(other, *axis, s),
+                };
+                Birth {
+                    light,
+                    point: *position,
+                    origin: *position,
+                    dir,
+                    normal: Vec3A::ZERO,
+                    prim: NO_PRIM,
+                    lambda_nm,
+                }
+            }
+        }
+    }
+}
+
+/// Direction about the axis `n` with the distribution's pdf.
+#[inline]
+fn direction(d: Distribution, n: Vec3A, s: &mut Sampler) -> Vec3A {
+    match d {
+        Distribution::Lambertian => cosine_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
+        Distribution::Isotropic => uniform_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
+        Distribution::Collimated => n,
+        Distribution::CosinePower(e) => {
+            cosine_power_lobe(n, e as f32, s.uniform_f32(), s.uniform_f32())
+        }
+    }
+}

@@ -1,0 +1,343 @@
+//! Triangles, the BVH (obvhs CWBVH) and robust ray queries: a watertight ray–triangle test and
+//! ray origins offset by the hit point's own floating-point error bound, so that scattering works
+//! at millimetre and kilometre scales alike with no fixed epsilon.
+
+use std::time::Duration;
+
+use glam::Vec3A;
+use obvhs::cwbvh::builder::build_cwbvh_from_tris;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+
+/// No primitive: used as "skip nothing".
+pub const NO_PRIM: u32 = u32::MAX;
+
+/// γ(n) = nε/(1 − nε), ε = f32 unit roundoff (pbrt-v4 §6.8.1): bounds of accumulated rounding.
+#[inline]
+pub fn gamma(n: i32) -> f32 {
+    let e = f32::EPSILON * 0.5;
+    (n as f32 * e) / (1.0 - n as f32 * e)
+}
+
+/// A closest hit: distance along the (unit) ray, primitive, barycentrics of the vertices.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    pub t: f32,
+    pub prim: u32,
+    pub b: [f32; 3],
+}
+
+/// All triangles of a scene in BVH order, each knowing its surface.
+pub struct Geometry {
+    pub verts: Vec<[Vec3A; 3]>,
+    /// Unit geometric normal (v1−v0)×(v2−v0).
+    pub normals: Vec<Vec3A>,
+    pub surface: Vec<u32>,
+    bvh: Option<CwBvh>,
+}
+
+impl Geometry {
+    /// Builds the BVH and reorders triangles into its leaf order, so a BVH primitive id indexes
+    /// the arrays directly.
+    pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Self {
+        assert_eq!(tris.len(), surface.len());
+        if tris.is_empty() {
+            return Geometry {
+                verts: vec![],
+                normals: vec![],
+                surface: vec![],
+                bvh: None,
+            };
+        }
+        let bvh_tris: Vec<Triangle> = tris
+            .iter()
+            .map(|t| Triangle {
+                v0: t[0],
+                v1: t[1],
+                v2: t[2],
+            })
+            .collect();
+        let mut bvh = build_cwbvh_from_tris(
+            &bvh_tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
+        let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
+        let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
+        for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
+            *idx = k as u32;
+        }
+        let normals = verts
+            .iter()
+            .map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize())
+            .collect();
+        Geometry {
+            verts,
+            normals,
+            surface,
+            bvh: Some(bvh),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.verts.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.verts.is_empty()
+    }
+
+    pub fn area(&self, prim: usize) -> f64 {
+        let [a, b, c] = self.verts[prim].map(|v| v.as_dvec3());
+        0.5 * (b - a).cross(c - a).length()
+    }
+
+    /// Closest hit along `origin + t·dir`, t in (0, t_max), ignoring primitive `skip` (the one the
+    /// ray leaves: a flat triangle can never be hit again by a ray leaving it).
+    #[inline]
+    pub fn intersect(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        let ray = Ray::new(origin, dir, 0.0, t_max);
+        let mut hit = RayHit::none();
+        let mut bary = [0.0f32; 3];
+        let found = bvh.ray_traverse(ray, &mut hit, |r, id| {
+            if id as u32 == skip {
+                return f32::INFINITY;
+            }
+            match intersect_triangle(r.origin, r.direction, r.tmax, &self.verts[id]) {
+                Some((t, b)) => {
+                    bary = b;
+                    t
+                }
+                None => f32::INFINITY,
+            }
+        });
+        found.then(|| Hit {
+            t: hit.t,
+            prim: hit.primitive_id,
+            b: bary,
+        })
+    }
+
+    /// True when nothing blocks the open segment from `origin` to `origin + t_max·dir`.
+    pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> bool {
+        let Some(bvh) = self.bvh.as_ref() else {
+            return true;
+        };
+        let ray = Ray::new(origin, dir, 0.0, t_max);
+        bvh.ray_traverse_miss(ray, |r, id| {
+            if id as u32 == skip {
+                return f32::INFINITY;
+            }
+            intersect_triangle(r.origin, r.direction, r.tmax, &self.verts[id])
+                .map_or(f32::INFINITY, |h| h.0)
+        })
+    }
+
+    /// Hit point from barycentrics with its absolute error bound (pbrt-v4 §6.8.5):
+    /// |error| ≤ γ(7)·(|b0·p0| + |b1·p1| + |b2·p2|) per component.
+    #[inline]
+    pub fn hit_point(&self, hit: &Hit) -> (Vec3A, Vec3A) {
+        let [p0, p1, p2] = self.verts[hit.prim as usize];
+        let [b0, b1, b2] = hit.b;
+        let p = b0 * p0 + b1 * p1 + b2 * p2;
+        let err = gamma(7) * ((b0 * p0).abs() + (b1 * p1).abs() + (b2 * p2).abs());
+        (p, err)
+    }
+}
+
+/// Moves `p` off the surface along the normal, to the side `dir` leaves by, far enough that the
+/// rounding error `err` of `p` cannot put the new origin on the wrong side (pbrt-v4 OffsetRayOrigin).
+#[inline]
+pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, dir: Vec3A) -> Vec3A {
+    let d = n.abs().dot(err);
+    let mut offset = d * n;
+    if dir.dot(n) < 0.0 {
+        offset = -offset;
+    }
+    let mut po = p + offset;
+    // Round away from p so the offset survives the addition's own rounding.
+    for i in 0..3 {
+        if offset[i] > 0.0 {
+            po[i] = po[i].next_up();
+        } else if offset[i] < 0.0 {
+            po[i] = po[i].next_down();
+        }
+    }
+    po
+}
+
+#[inline]
+fn max_dim(v: Vec3A) -> usize {
+    if v.x > v.y {
+        if v.x > v.z {
+            0
+        } else {
+            2
+        }
+    } else if v.y > v.z {
+        1
+    } else {
+        2
+    }
+}
+
+#[inline]
+fn permute(v: Vec3A, x: usize, y: usize, z: usize) -> Vec3A {
+    Vec3A::new(v[x], v[y], v[z])
+}
+
+/// a·b − c·d with one rounding error (Kahan's algorithm with FMA).
+#[inline]
+fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
+    let cd = c * d;
+    let err = (-c).mul_add(d, cd);
+    let dop = a.mul_add(b, -cd);
+    dop + err
+}
+
+/// Watertight ray–triangle intersection (Woop, Benthin, Wald 2013; pbrt-v4 §6.5.3): the ray is
+/// translated to the origin and sheared onto +z, then the three edge functions decide inside
+/// consistently on shared edges, so no ray slips between two triangles. Returns (t, barycentrics)
+/// for 0 < t < t_max, with t > 0 proven by a conservative error bound.
+#[inline]
+pub fn intersect_triangle(
+    o: Vec3A,
+    d: Vec3A,
+    t_max: f32,
+    tri: &[Vec3A; 3],
+) -> Option<(f32, [f32; 3])> {
+    let kz = max_dim(d.abs());
+    let kx = if kz == 2 { 0 } else { kz + 1 };
+    let ky = if kx == 2 { 0 } else { kx + 1 };
+    let d = permute(d, kx, ky, kz);
+    let mut p0 = permute(tri[0] - o, kx, ky, kz);
+    let mut p1 = permute(tri[1] - o, kx, ky, kz);
+    let mut p2 = permute(tri[2] - o, kx, ky, kz);
+    let sx = -d.x / d.z;
+    let sy = -d.y / d.z;
+    let sz = 1.0 / d.z;
+    p0.x += sx * p0.z;
+    p0.y += sy * p0.z;
+    p1.x += sx * p1.z;
+    p1.y += sy * p1.z;
+    p2.x += sx * p2.z;
+    p2.y += sy * p2.z;
+
+    let mut e0 = difference_of_products(p1.x, p2.y, p1.y, p2.x);
+    let mut e1 = difference_of_products(p2.x, p0.y, p2.y, p0.x);
+    let mut e2 = difference_of_products(p0.x, p1.y, p0.y, p1.x);
+    // On an exact edge, recompute in double precision so the sign is right.
+    if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+        e0 = (p1.x as f64 * p2.y as f64 - p1.y as f64 * p2.x as f64) as f32;
+        e1 = (p2.x as f64 * p0.y as f64 - p2.y as f64 * p0.x as f64) as f32;
+        e2 = (p0.x as f64 * p1.y as f64 - p0.y as f64 * p1.x as f64) as f32;
+    }
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None;
+    }
+    p0.z *= sz;
+    p1.z *= sz;
+    p2.z *= sz;
+    let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
+    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+        return None;
+    }
+    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    if !(t < t_max) {
+        return None;
+    }
+
+    // Conservative bound on t's error, so that t > 0 is certain (pbrt-v4 §6.8.4).
+    let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
+    let delta_z = gamma(3) * max_zt;
+    let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
+    let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    if t <= delta_t {
+        return None;
+    }
+    Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
+}
+
+/// Orthonormal basis around unit `n` (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
+#[inline]
+pub fn basis(n: Vec3A) -> (Vec3A, Vec3A) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t = Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let s = Vec3A::new(b, sign + n.y * n.y * a, -n.y);
+    (t, s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shared_edge_is_hit_exactly_once() {
+        // Two triangles sharing the diagonal of the unit square; rays aimed exactly at the diagonal.
+        let a = [
+            Vec3A::new(0.0, 0.0, 0.0),
+            Vec3A::new(1.0, 0.0, 0.0),
+            Vec3A::new(1.0, 1.0, 0.0),
+        ];
+        let b = [
+            Vec3A::new(0.0, 0.0, 0.0),
+            Vec3A::new(1.0, 1.0, 0.0),
+            Vec3A::new(0.0, 1.0, 0.0),
+        ];
+        for k in 1..100 {
+            let s = k as f32 / 100.0;
+            let o = Vec3A::new(s, s, 1.0);
+            let d = Vec3A::new(0.0, 0.0, -1.0);
+            let hits = intersect_triangle(o, d, f32::INFINITY, &a).is_some() as u32
+                + intersect_triangle(o, d, f32::INFINITY, &b).is_some() as u32;
+            assert!(hits >= 1, "ray at {s} slipped through the shared edge");
+        }
+    }
+
+    #[test]
+    fn offset_origin_is_on_the_leaving_side_at_any_scale() {
+        for scale in [1e-3f32, 1.0, 1e3, 1e5] {
+            let tri = [
+                Vec3A::new(0.0, 0.0, 0.0) * scale + Vec3A::splat(scale),
+                Vec3A::new(1.0, 0.0, 0.3) * scale + Vec3A::splat(scale),
+                Vec3A::new(0.2, 1.0, 0.7) * scale + Vec3A::splat(scale),
+            ];
+            let geo = Geometry::build(vec![tri], vec![0]);
+            let n = geo.normals[0];
+            let hit = Hit {
+                t: 1.0,
+                prim: 0,
+                b: [0.3, 0.3, 0.4],
+            };
+            let (p, err) = geo.hit_point(&hit);
+            for dir in [n, -n] {
+                let o = offset_ray_origin(p, err, n, dir);
+                let side = (o - geo.verts[0][0]).as_dvec3().dot(n.as_dvec3());
+                assert!(
+                    side * dir.dot(n) as f64 > 0.0,
+                    "offset origin on the wrong side at scale {scale}"
+                );
+            }
+        }
+    }
+}

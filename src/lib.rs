@@ -1,0 +1,18 @@
+//! photon: a forward Monte Carlo particle tracer. A scene (surfaces, materials, lights) goes in;
+//! per-surface flux tallies with standard errors and an exact energy ledger come out.
+//!
+//! Data path: `scene` (TOML → SI triangles) → `emitter` (photon births) → `transport` (the photon
+//! loop over the `geometry` BVH, `material` decisions) → `tally` (per-history moments, ledger) →
+//! `run` (batches, ordered reduction, stopping) → `output` (atomic files).
+
+pub mod emitter;
+pub mod error;
+pub mod geometry;
+pub mod material;
+pub mod output;
+pub mod run;
+pub mod sampling;
+pub mod scene;
+pub mod spectrum;
+pub mod tally;
+pub mod transport;

@@ -1,0 +1,200 @@
+//! The `photon` command line: a thin shell over the library.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use clap::{Parser, Subcommand};
+
+use photon::error::Error;
+use photon::output;
+use photon::run::{apply_options, simulate, RunOptions};
+use photon::scene::{self, LightShape, Scene};
+
+#[derive(Parser)]
+#[command(
+    name = "photon",
+    version,
+    about = "Forward Monte Carlo photon tracer: how much light lands where"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate a scene and write flux.json, flux.csv and run.json.
+    Run {
+        scene: PathBuf,
+        /// Output folder (default out/<scene-stem>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        photons: Option<u64>,
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Stop when every tallied surface (or each --tally) reaches this relative standard error.
+        #[arg(long = "rel-error")]
+        rel_error: Option<f64>,
+        /// Surface whose error --rel-error targets (repeatable).
+        #[arg(long = "tally")]
+        tally: Vec<String>,
+        /// Stop at this time budget, in seconds.
+        #[arg(long = "time")]
+        time: Option<f64>,
+        #[arg(long = "max-bounces")]
+        max_bounces: Option<u32>,
+        /// Skip the camera image.
+        #[arg(long = "no-image")]
+        no_image: bool,
+        /// No progress bar and no table.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Load and check a scene; print its surfaces, lights, triangle count, power and effects.
+    Info { scene: PathBuf },
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            // clap's help and version are successes; every other parse failure is bad arguments.
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let result = match cli.command {
+        Command::Run {
+            scene,
+            out,
+            photons,
+            seed,
+            threads,
+            rel_error,
+            tally,
+            time,
+            max_bounces,
+            no_image: _,
+            quiet,
+        } => {
+            let opts = RunOptions {
+                photons,
+                seed,
+                threads,
+                max_bounces,
+                rel_error,
+                tallies: tally,
+                time_s: time,
+                progress: !quiet,
+            };
+            run(&scene, out, &opts, quiet)
+        }
+        Command::Info { scene } => info(&scene),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}
+
+fn run(
+    scene_path: &Path,
+    out: Option<PathBuf>,
+    opts: &RunOptions,
+    quiet: bool,
+) -> Result<(), Error> {
+    let mut scene = scene::load(scene_path)?;
+    let chosen = apply_options(&mut scene, opts)?;
+    // The scene and options are sound: only now is anything created on disk.
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
+    std::fs::create_dir_all(&out_dir)
+        .map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
+
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let flag = interrupt.clone();
+    // A second Ctrl-C is not caught again: the handler only sets the flag once per process.
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+
+    let result = simulate(&scene, opts, &chosen, &interrupt)?;
+    let flux = output::flux(&scene, &result);
+    let info = output::run_info(&scene, &result);
+    output::write_json(&out_dir, "flux.json", &flux)?;
+    output::write_atomic(&out_dir, "flux.csv", output::flux_csv(&flux).as_bytes())?;
+    output::write_json(&out_dir, "run.json", &info)?;
+    if !quiet {
+        print!("{}", output::summary_table(&flux, &info));
+        println!("wrote {}", out_dir.display());
+    }
+    Ok(())
+}
+
+fn info(scene_path: &Path) -> Result<(), Error> {
+    let scene = scene::load(scene_path)?;
+    print!("{}", describe(&scene));
+    Ok(())
+}
+
+fn describe(scene: &Scene) -> String {
+    let mut s = format!("scene {}\n", scene.path.display());
+    s.push_str(&format!("surfaces ({}):\n", scene.surfaces.len()));
+    for surf in &scene.surfaces {
+        let m = &scene.materials[surf.material];
+        s.push_str(&format!(
+            "  {:<16} {:<12} {:>8} triangles  {:>12.6} m²{}\n",
+            surf.name,
+            format!("{} ({})", m.name, m.material.kind()),
+            surf.triangles,
+            surf.area_m2,
+            if surf.light.is_some() {
+                "  [light]"
+            } else {
+                ""
+            }
+        ));
+    }
+    s.push_str(&format!("lights ({}):\n", scene.lights.len()));
+    for l in &scene.lights {
+        let shape = match &l.shape {
+            LightShape::Area { surface } => {
+                format!("area, {:.6} m²", scene.surfaces[*surface].area_m2)
+            }
+            LightShape::Point { position, .. } => format!(
+                "point at [{}, {}, {}] m",
+                position.x, position.y, position.z
+            ),
+        };
+        s.push_str(&format!(
+            "  {:<16} {:>12.6} W  {}  {}\n",
+            l.name,
+            l.power_w,
+            l.distribution.describe(),
+            shape
+        ));
+    }
+    s.push_str(&format!("triangles: {}\n", scene.geometry.len()));
+    s.push_str(&format!("total power: {:.6} W\n", scene.total_power_w()));
+    let (lo, hi) = scene.simulation.wavelength_range_nm;
+    s.push_str(&format!("wavelength range: {lo}–{hi} nm\n"));
+    s.push_str(&format!("transport: {}\n", scene.effects.transport()));
+    s.push_str(&format!("effects: {}\n", scene.effects.names().join(", ")));
+    if let Some(c) = &scene.camera {
+        s.push_str(&format!(
+            "camera: {}×{} pixels, fov {}°\n",
+            c.resolution[0], c.resolution[1], c.fov_deg
+        ));
+    }
+    s
+}

@@ -1,0 +1,215 @@
+//! Output files, each written to a temporary name and renamed, so no reader ever sees half a file.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::error::Error;
+use crate::run::{RunResult, StopReason, BATCH_PHOTONS};
+use crate::scene::Scene;
+use crate::tally::Ledger;
+
+#[derive(Serialize, Clone, Debug)]
+pub struct SurfaceRow {
+    pub name: String,
+    pub area_m2: f64,
+    pub incident_w: f64,
+    pub incident_w_stderr: f64,
+    pub absorbed_w: f64,
+    pub absorbed_w_stderr: f64,
+    /// Relative standard error of incident_w (0 when nothing arrived).
+    pub rel_error: f64,
+    /// Figure of merit 1/(rel_error² · seconds): how much accuracy a second of this run buys.
+    pub fom: f64,
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct Flux {
+    pub photons: u64,
+    pub emitted_w: f64,
+    pub surfaces: Vec<SurfaceRow>,
+    pub ledger: Ledger,
+}
+
+#[derive(Serialize, Clone, Debug)]
+pub struct RunInfo {
+    pub version: String,
+    pub scene: String,
+    pub seed: u64,
+    pub photons: u64,
+    pub threads: usize,
+    pub wall_seconds: f64,
+    pub photons_per_second: f64,
+    pub effects: Vec<String>,
+    pub stop_reason: StopReason,
+    pub transport: String,
+    pub batch_photons: u64,
+    pub max_bounces: u32,
+    pub mean_scatterings: f64,
+}
+
+pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
+    let t = &r.tallies;
+    let w = t.watts_per_weight(r.emitted_w) * t.photons as f64;
+    let surfaces = scene
+        .surfaces
+        .iter()
+        .enumerate()
+        .map(|(i, s)| {
+            let (incident_w, incident_w_stderr) = t.incident[i].estimate(t.photons, w);
+            let (absorbed_w, absorbed_w_stderr) = t.absorbed[i].estimate(t.photons, w);
+            let rel_error = if incident_w > 0.0 {
+                incident_w_stderr / incident_w
+            } else {
+                0.0
+            };
+            let fom = if rel_error > 0.0 && r.wall_seconds > 0.0 {
+                1.0 / (rel_error * rel_error * r.wall_seconds)
+            } else {
+                0.0
+            };
+            SurfaceRow {
+                name: s.name.clone(),
+                area_m2: s.area_m2,
+                incident_w,
+                incident_w_stderr,
+                absorbed_w,
+                absorbed_w_stderr,
+                rel_error,
+                fom,
+            }
+        })
+        .collect();
+    Flux {
+        photons: t.photons,
+        emitted_w: r.emitted_w,
+        surfaces,
+        ledger: t.ledger(r.emitted_w),
+    }
+}
+
+pub fn run_info(scene: &Scene, r: &RunResult) -> RunInfo {
+    let photons = r.tallies.photons;
+    RunInfo {
+        version: env!("CARGO_PKG_VERSION").to_string(),
+        scene: scene.path.display().to_string(),
+        seed: r.seed,
+        photons,
+        threads: r.threads,
+        wall_seconds: r.wall_seconds,
+        photons_per_second: if r.wall_seconds > 0.0 {
+            photons as f64 / r.wall_seconds
+        } else {
+            0.0
+        },
+        effects: scene
+            .effects
+            .names()
+            .iter()
+            .map(|s| s.to_string())
+            .collect(),
+        stop_reason: r.stop_reason,
+        transport: scene.effects.transport().to_string(),
+        batch_photons: BATCH_PHOTONS,
+        max_bounces: scene.simulation.max_bounces,
+        mean_scatterings: if photons > 0 {
+            r.tallies.scatterings as f64 / photons as f64
+        } else {
+            0.0
+        },
+    }
+}
+
+pub fn flux_csv(f: &Flux) -> String {
+    let mut s = String::from(
+        "name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error,fom\n",
+    );
+    for r in &f.surfaces {
+        let name = if r.name.contains([',', '"', '\n']) {
+            format!("\"{}\"", r.name.replace('"', "\"\""))
+        } else {
+            r.name.clone()
+        };
+        s.push_str(&format!(
+            "{name},{},{},{},{},{},{},{}\n",
+            r.area_m2,
+            r.incident_w,
+            r.incident_w_stderr,
+            r.absorbed_w,
+            r.absorbed_w_stderr,
+            r.rel_error,
+            r.fom
+        ));
+    }
+    s
+}
+
+/// Writes `bytes` to `dir/name` through a temporary file in the same folder and a rename.
+pub fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<PathBuf, Error> {
+    let path = dir.join(name);
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, &path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::Other(format!("cannot write {}: {e}", path.display()))
+    })?;
+    Ok(path)
+}
+
+pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<PathBuf, Error> {
+    let mut text = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::Other(format!("cannot encode {name}: {e}")))?;
+    text.push('\n');
+    write_atomic(dir, name, text.as_bytes())
+}
+
+/// The per-surface table printed at the end of a run.
+pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
+    let width = f
+        .surfaces
+        .iter()
+        .map(|r| r.name.len())
+        .max()
+        .unwrap_or(4)
+        .max(7);
+    let mut s = format!(
+        "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}\n",
+        "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err"
+    );
+    for r in &f.surfaces {
+        s.push_str(&format!(
+            "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8.2e}\n",
+            r.name,
+            r.incident_w,
+            r.incident_w_stderr,
+            r.absorbed_w,
+            r.absorbed_w_stderr,
+            r.rel_error
+        ));
+    }
+    let l = &f.ledger;
+    s.push_str(&format!(
+        "ledger: emitted {:.6} W = absorbed {:.6} + escaped {:.6} + truncated {:.6} (residual {:.1e})\n",
+        l.emitted_w,
+        l.absorbed_w,
+        l.escaped_w,
+        l.truncated_w,
+        l.relative_residual()
+    ));
+    s.push_str(&format!(
+        "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport), stopped by {:?}\n",
+        info.photons,
+        info.wall_seconds,
+        info.photons_per_second,
+        info.threads,
+        info.transport,
+        info.stop_reason
+    ));
+    s
+}

@@ -1,0 +1,210 @@
+//! The driver: fixed-size photon batches traced in parallel, merged in batch-index order, with
+//! stopping on photon count, relative error, time budget or Ctrl-C at batch boundaries.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+use crate::emitter::Emitter;
+use crate::error::Error;
+use crate::scene::Scene;
+use crate::tally::Tallies;
+use crate::transport::trace_batch_for;
+
+/// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
+pub const BATCH_PHOTONS: u64 = 16_384;
+/// A relative-error stop is judged only after this many batches, so the variance estimate is sound.
+pub const MIN_BATCHES_FOR_REL_ERROR: u64 = 4;
+
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    pub photons: Option<u64>,
+    pub seed: Option<u64>,
+    pub threads: Option<usize>,
+    pub max_bounces: Option<u32>,
+    pub rel_error: Option<f64>,
+    /// Surfaces the relative-error target applies to; empty means every surface with a non-zero result.
+    pub tallies: Vec<String>,
+    pub time_s: Option<f64>,
+    pub progress: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopReason {
+    Photons,
+    RelError,
+    Time,
+    Interrupted,
+}
+
+pub struct RunResult {
+    pub tallies: Tallies,
+    pub emitted_w: f64,
+    pub seed: u64,
+    pub threads: usize,
+    pub wall_seconds: f64,
+    pub stop_reason: StopReason,
+}
+
+/// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
+pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>, Error> {
+    if let Some(p) = opts.photons {
+        if p == 0 {
+            return Err(Error::Usage("--photons must be at least 1".into()));
+        }
+        scene.simulation.photons = p;
+        scene.simulation.photons_given = true;
+    }
+    if let Some(s) = opts.seed {
+        scene.simulation.seed = s;
+    }
+    if let Some(b) = opts.max_bounces {
+        scene.simulation.max_bounces = b;
+    }
+    if let Some(e) = opts.rel_error {
+        if !(e > 0.0 && e.is_finite()) {
+            return Err(Error::Usage(format!(
+                "--rel-error must be a positive number, found {e}"
+            )));
+        }
+    }
+    if let Some(t) = opts.time_s {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(Error::Usage(format!(
+                "--time must be a positive number of seconds, found {t}"
+            )));
+        }
+    }
+    if opts.threads == Some(0) {
+        return Err(Error::Usage("--threads must be at least 1".into()));
+    }
+    let mut chosen = Vec::new();
+    for name in &opts.tallies {
+        match scene.surfaces.iter().position(|s| &s.name == name) {
+            Some(i) => chosen.push(i),
+            None => {
+                let known: Vec<&str> = scene.surfaces.iter().map(|s| s.name.as_str()).collect();
+                return Err(Error::Usage(format!(
+                    "--tally {name}: no surface of that name; surfaces: {}",
+                    known.join(", ")
+                )));
+            }
+        }
+    }
+    if !opts.tallies.is_empty() && opts.rel_error.is_none() {
+        return Err(Error::Usage(
+            "--tally only makes sense with --rel-error".into(),
+        ));
+    }
+    if chosen.is_empty() {
+        chosen = (0..scene.surfaces.len()).collect();
+    }
+    Ok(chosen)
+}
+
+/// Runs the simulation. `interrupt` is polled between rounds of batches.
+pub fn simulate(
+    scene: &Scene,
+    opts: &RunOptions,
+    rel_error_surfaces: &[usize],
+    interrupt: &AtomicBool,
+) -> Result<RunResult, Error> {
+    let threads = opts
+        .threads
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::Other(format!("cannot start threads: {e}")))?;
+    let emitter = Emitter::new(scene);
+    let seed = scene.simulation.seed;
+    let start = Instant::now();
+
+    // With an accuracy or time target the photon count is only a cap, and only when it was given.
+    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
+    let cap = if open_ended && !scene.simulation.photons_given {
+        u64::MAX
+    } else {
+        scene.simulation.photons
+    };
+    let total_batches = cap.div_ceil(BATCH_PHOTONS);
+    let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
+
+    let progress = make_progress(opts.progress, (cap != u64::MAX).then_some(cap));
+    let mut tallies = Tallies::new(scene.surfaces.len());
+    let round = (threads as u64 * 2).max(1);
+    let mut next = 0u64;
+    let mut stop = StopReason::Photons;
+    'rounds: while next < total_batches {
+        let end = (next + round).min(total_batches);
+        let batches: Vec<Tallies> = pool.install(|| {
+            (next..end)
+                .into_par_iter()
+                .map(|b| trace_batch_for(scene, &emitter, seed, b, photons_in(b)))
+                .collect()
+        });
+        for (b, t) in (next..end).zip(&batches) {
+            tallies.merge(t);
+            if let Some(target) = opts.rel_error {
+                if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
+                    && tallies
+                        .worst_rel_error(rel_error_surfaces)
+                        .is_some_and(|e| e <= target)
+                {
+                    stop = StopReason::RelError;
+                    break 'rounds;
+                }
+            }
+        }
+        next = end;
+        if let Some(p) = &progress {
+            p.set_position(tallies.photons);
+        }
+        if interrupt.load(Ordering::Relaxed) {
+            stop = StopReason::Interrupted;
+            break;
+        }
+        if opts
+            .time_s
+            .is_some_and(|t| start.elapsed().as_secs_f64() >= t)
+        {
+            stop = StopReason::Time;
+            break;
+        }
+    }
+    if let Some(p) = progress {
+        p.finish_and_clear();
+    }
+    Ok(RunResult {
+        tallies,
+        emitted_w: emitter.total_power_w,
+        seed,
+        threads,
+        wall_seconds: start.elapsed().as_secs_f64(),
+        stop_reason: stop,
+    })
+}
+
+fn make_progress(enabled: bool, total: Option<u64>) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    if !enabled || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = match total {
+        Some(n) => indicatif::ProgressBar::new(n).with_style(
+            indicatif::ProgressStyle::with_template(
+                "{bar:40} {pos}/{len} photons  {per_sec}  eta {eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        ),
+        None => indicatif::ProgressBar::new_spinner().with_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} {pos} photons  {per_sec}  {elapsed}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        ),
+    };
+    Some(bar)
+}

@@ -1,0 +1,775 @@
+//! TOML → `Scene`: every key checked, every length converted to metres once, every shape
+//! turned into triangles. Each error names the file, the key path and the line.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, Vec3A};
+use toml::de::DeTable;
+
+use super::doc::{child_path, index_path, Node, Source, Table, R};
+use super::shapes::{self, ShapeSpec};
+use super::*;
+use crate::error::{Error, InputError};
+use crate::geometry::Geometry;
+use crate::spectrum::Spectrum;
+
+const ROOT_KEYS: &[&str] = &[
+    "simulation",
+    "camera",
+    "scene",
+    "materials",
+    "surfaces",
+    "lights",
+];
+
+/// Loads and checks a scene file.
+pub fn load(path: &Path) -> Result<Scene, Error> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::new(path, "", None, format!("cannot read the scene file: {e}")))?;
+    load_str(path, &text)
+}
+
+/// Loads a scene from text; `path` names it in messages and anchors relative file paths.
+pub fn load_str(path: &Path, text: &str) -> Result<Scene, Error> {
+    let src = Source::new(path, text);
+    if text.trim().is_empty() {
+        return Err(src
+            .error(
+                "",
+                None,
+                "the scene file is empty: it needs at least one light",
+            )
+            .into());
+    }
+    let root = DeTable::parse(text).map_err(|e| {
+        let byte = e.span().map(|s| s.start);
+        src.error(
+            "",
+            byte,
+            format!("TOML syntax error: {}", e.message().trim()),
+        )
+    })?;
+    let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let loader = Loader {
+        src: &src,
+        base_dir,
+    };
+    let table = Table {
+        src: &src,
+        path: "",
+        table: root.get_ref(),
+        start: root.span().start,
+    };
+    Ok(loader.scene(table, path)?)
+}
+
+struct Loader<'s> {
+    src: &'s Source<'s>,
+    base_dir: PathBuf,
+}
+
+/// Shapes of one `[[surfaces]]` or `[[lights]]` entry, before triangulation.
+struct Entry {
+    name: String,
+    material: usize,
+    shape: ShapeSpec,
+    line: usize,
+    shape_line: usize,
+}
+
+impl<'s> Loader<'s> {
+    fn scene(&self, root: Table<'s, '_>, path: &Path) -> R<Scene> {
+        root.allow(ROOT_KEYS)?;
+        let unit_m = self.unit(root)?;
+        let simulation = self.simulation(root)?;
+        let range = simulation.wavelength_range_nm;
+
+        let mut materials = vec![NamedMaterial {
+            name: "absorber".into(),
+            material: Material::Absorber,
+        }];
+        let mut material_index: HashMap<String, usize> =
+            HashMap::from([("absorber".to_string(), 0)]);
+        root.with("materials", |n| {
+            let t = n.table()?;
+            for key in t.keys() {
+                let m = t.require(key, |n| self.material(n, range))?;
+                if key == "absorber" {
+                    // A user's own "absorber" replaces the built-in one.
+                    materials[0].material = m;
+                } else {
+                    material_index.insert(key.to_string(), materials.len());
+                    materials.push(NamedMaterial {
+                        name: key.to_string(),
+                        material: m,
+                    });
+                }
+            }
+            Ok(())
+        })?;
+
+        let mut names: HashMap<String, String> = HashMap::new();
+        let mut entries: Vec<Entry> = Vec::new();
+        let mut check_name = |name: &str, key: &str, node_line: usize| -> R<()> {
+            if let Some(prev) = names.insert(name.to_string(), key.to_string()) {
+                return Err(InputError::new(
+                    self.src.file,
+                    key,
+                    Some(node_line),
+                    format!("duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"),
+                ));
+            }
+            Ok(())
+        };
+
+        if let Some(list) = root.with("surfaces", |n| {
+            n.each(|item| {
+                let t = item.table()?;
+                t.allow(&["name", "material", "shape"])?;
+                let name = self.name(t)?;
+                let material = self.material_ref(t, &material_index)?;
+                let shape =
+                    t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
+                Ok(Entry {
+                    name,
+                    material,
+                    shape,
+                    line: t.line_of_key("name"),
+                    shape_line: t.line_of_key("shape"),
+                })
+            })
+        })? {
+            for (i, e) in list.into_iter().enumerate() {
+                check_name(&e.name, &index_path("surfaces", i), e.line)?;
+                entries.push(e);
+            }
+        }
+
+        // Lights: parsed now, power resolved after triangulation (radiance needs the area).
+        struct LightSpec {
+            name: String,
+            material: usize,
+            shape: ShapeSpec,
+            power: PowerSpec,
+            spectrum: Spectrum,
+            distribution: Distribution,
+            axis: Option<DVec3>,
+            path: String,
+            line: usize,
+            shape_line: usize,
+        }
+        enum PowerSpec {
+            Watts(f64),
+            Radiance(Spectrum),
+        }
+        let mut light_specs: Vec<LightSpec> = Vec::new();
+        root.with("lights", |n| {
+            n.each(|item| {
+                let t = item.table()?;
+                t.allow(&["name", "shape", "power_w", "radiance", "spectrum", "distribution", "material", "direction"])?;
+                let name = self.name(t)?;
+                let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
+                let material = if t.has("material") { self.material_ref(t, &material_index)? } else { 0 };
+                let power = match (t.has("power_w"), t.has("radiance")) {
+                    (true, true) => return Err(t.err("give either `power_w` or `radiance`, not both")),
+                    (false, false) => return Err(t.err("missing `power_w` (total radiant flux in W) or `radiance` (W m^-2 sr^-1 nm^-1)")),
+                    (true, false) => {
+                        let p = t.req_f64("power_w")?;
+                        if p <= 0.0 {
+                            return Err(t.with("power_w", |n| Ok(n.err(format!("power must be positive, found {p}"))))?.unwrap());
+                        }
+                        PowerSpec::Watts(p)
+                    }
+                    (false, true) => {
+                        let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
+                        if s.integral(range) <= 0.0 {
+                            return Err(t.with("radiance", |n| Ok(n.err("radiance must be positive somewhere in the wavelength range")))?.unwrap());
+                        }
+                        PowerSpec::Radiance(s)
+                    }
+                };
+                let spectrum = t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
+                if let (PowerSpec::Watts(_), true) = (&power, spectrum.integral(range) <= 0.0) {
+                    return Err(t.with("spectrum", |n| Ok(n.err("the spectrum is zero over the whole wavelength range")))?.unwrap());
+                }
+                let distribution = t.with("distribution", |n| self.distribution(n))?.unwrap_or(Distribution::Lambertian);
+                let axis = t.with("direction", |n| {
+                    let d = DVec3::from(n.vec3()?);
+                    if d.length() == 0.0 {
+                        return Err(n.err("direction must not be the zero vector"));
+                    }
+                    Ok(d.normalize())
+                })?;
+                let is_point = matches!(shape, ShapeSpec::Point { .. });
+                if !is_point && axis.is_some() {
+                    return Err(t.with("direction", |n| Ok(n.err("`direction` is for point lights; an area light emits about its front normal")))?.unwrap());
+                }
+                if is_point {
+                    if matches!(power, PowerSpec::Radiance(_)) {
+                        return Err(t.with("radiance", |n| Ok(n.err("a point light has no area, so it needs `power_w`, not `radiance`")))?.unwrap());
+                    }
+                    if t.has("material") {
+                        return Err(t.with("material", |n| Ok(n.err("a point light is not a surface and takes no material")))?.unwrap());
+                    }
+                    if distribution != Distribution::Isotropic && axis.is_none() {
+                        return Err(t.err(format!("a point light with distribution {} needs `direction = [x, y, z]`", distribution.describe())));
+                    }
+                }
+                if let PowerSpec::Radiance(_) = power {
+                    if distribution == Distribution::Collimated {
+                        return Err(t.with("radiance", |n| Ok(n.err("a collimated beam has no finite radiance: give `power_w`")))?.unwrap());
+                    }
+                }
+                Ok(LightSpec {
+                    name,
+                    material,
+                    shape,
+                    power,
+                    spectrum,
+                    distribution,
+                    axis,
+                    path: t.path.to_string(),
+                    line: t.line_of_key("name"),
+                    shape_line: t.line_of_key("shape"),
+                })
+            })
+            .map(|v| light_specs = v)
+        })?;
+        for spec in &light_specs {
+            check_name(&spec.name, &spec.path, spec.line)?;
+        }
+        if light_specs.is_empty() {
+            return Err(self.src.error(
+                "lights",
+                None,
+                "the scene has no light: add a [[lights]] entry",
+            ));
+        }
+
+        let camera = root.with("camera", |n| self.camera(n.table()?))?;
+
+        // Triangulate: surfaces first, then area lights, each triangle tagged with its surface.
+        let mut tris: Vec<[Vec3A; 3]> = Vec::new();
+        let mut tri_surface: Vec<u32> = Vec::new();
+        let mut surfaces: Vec<Surface> = Vec::new();
+        // Returns (surface index, area in m²).
+        let mut add_surface = |name: &str,
+                               material: usize,
+                               tri_list: Vec<[DVec3; 3]>,
+                               light: Option<usize>|
+         -> (usize, f64) {
+            let id = surfaces.len() as u32;
+            let mut area = 0.0;
+            for t in &tri_list {
+                let m = t.map(|v| v * unit_m);
+                area += 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length();
+                tris.push(m.map(|v| v.as_vec3a()));
+                tri_surface.push(id);
+            }
+            surfaces.push(Surface {
+                name: name.to_string(),
+                material,
+                area_m2: area,
+                triangles: tri_list.len(),
+                light,
+            });
+            (id as usize, area)
+        };
+        for (i, e) in entries.iter().enumerate() {
+            let key = child_path(&index_path("surfaces", i), "shape");
+            let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line)?;
+            add_surface(&e.name, e.material, t, None);
+        }
+        let mut lights = Vec::with_capacity(light_specs.len());
+        for (i, spec) in light_specs.into_iter().enumerate() {
+            let key = child_path(&spec.path, "shape");
+            let (shape, area_m2) = match &spec.shape {
+                ShapeSpec::Point {
+                    position,
+                    transform,
+                } => {
+                    let p = transform.apply_point(DVec3::from(*position)) * unit_m;
+                    let axis = spec
+                        .axis
+                        .map(|a| transform.apply_dir(a))
+                        .unwrap_or(DVec3::Z);
+                    (LightShape::Point { position: p, axis }, 0.0)
+                }
+                other => {
+                    let t = shapes::triangulate(other, self.src, &key, spec.shape_line)?;
+                    let (surface, area) = add_surface(&spec.name, spec.material, t, Some(i));
+                    (LightShape::Area { surface }, area)
+                }
+            };
+            let (power_w, spectrum) = match spec.power {
+                PowerSpec::Watts(p) => (p, spec.spectrum),
+                PowerSpec::Radiance(radiance) => {
+                    // Φ = A ∫∫ L(λ) g(θ) cosθ dω dλ with L(θ) = L·g(θ) along the normal:
+                    // ∫ g cosθ dω = π (lambertian), 2π (isotropic: g = 1/cosθ), 2π/(n+1) (cosⁿ: g = cosⁿ⁻¹θ).
+                    let projected_sr = match spec.distribution {
+                        Distribution::Lambertian => std::f64::consts::PI,
+                        Distribution::Isotropic => 2.0 * std::f64::consts::PI,
+                        Distribution::CosinePower(n) => 2.0 * std::f64::consts::PI / (n + 1.0),
+                        Distribution::Collimated => unreachable!("rejected above"),
+                    };
+                    (area_m2 * projected_sr * radiance.integral(range), radiance)
+                }
+            };
+            lights.push(Light {
+                name: spec.name,
+                shape,
+                power_w,
+                spectrum,
+                distribution: spec.distribution,
+            });
+        }
+
+        let mut used = vec![false; materials.len()];
+        for s in &surfaces {
+            used[s.material] = true;
+        }
+        let effects = effects_of(&materials, &used, range, camera.is_some());
+        // Constant-over-range spectra become constants, so grey transport never evaluates a table.
+        for m in &mut materials {
+            simplify_material(&mut m.material, range);
+        }
+        let geometry = Geometry::build(tris, tri_surface);
+        Ok(Scene {
+            path: path.to_path_buf(),
+            simulation,
+            materials,
+            surfaces,
+            lights,
+            camera,
+            geometry,
+            effects,
+        })
+    }
+
+    fn unit(&self, root: Table<'s, '_>) -> R<f64> {
+        let unit = root.with("scene", |n| {
+            let t = n.table()?;
+            t.allow(&["unit"])?;
+            t.with("unit", |u| match u.str()? {
+                "m" => Ok(1.0),
+                "cm" => Ok(0.01),
+                "mm" => Ok(0.001),
+                other => Err(u.err(format!(
+                    "unknown unit \"{other}\"; use \"m\", \"cm\" or \"mm\""
+                ))),
+            })
+        })?;
+        Ok(unit.flatten().unwrap_or(1.0))
+    }
+
+    fn simulation(&self, root: Table<'s, '_>) -> R<Simulation> {
+        let mut sim = Simulation {
+            photons: 1_000_000,
+            seed: 1,
+            max_bounces: 100_000,
+            wavelength_range_nm: (360.0, 830.0),
+            photons_given: false,
+        };
+        root.with("simulation", |n| {
+            let t = n.table()?;
+            t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm"])?;
+            if let Some(p) = t.with("photons", |n| n.u64())? {
+                if p == 0 {
+                    return Err(t
+                        .with("photons", |n| Ok(n.err("photons must be at least 1")))?
+                        .unwrap());
+                }
+                sim.photons = p;
+                sim.photons_given = true;
+            }
+            if let Some(s) = t.with("seed", |n| n.u64())? {
+                sim.seed = s;
+            }
+            if let Some(b) = t.with("max_bounces", |n| n.u64())? {
+                sim.max_bounces = b.min(u32::MAX as u64) as u32;
+            }
+            if let Some(r) = t.with("wavelength_range_nm", |n| {
+                let items = n.each(|x| x.f64())?;
+                if items.len() != 2 || !(items[0] > 0.0 && items[0] < items[1]) {
+                    return Err(n.err("expected [min, max] with 0 < min < max (nm)"));
+                }
+                Ok((items[0], items[1]))
+            })? {
+                sim.wavelength_range_nm = r;
+            }
+            Ok(())
+        })?;
+        Ok(sim)
+    }
+
+    fn name(&self, t: Table<'s, '_>) -> R<String> {
+        let name = t.req_str("name")?;
+        if name.trim().is_empty() {
+            return Err(t
+                .with("name", |n| Ok(n.err("name must not be empty")))?
+                .unwrap());
+        }
+        Ok(name)
+    }
+
+    fn material_ref(&self, t: Table<'s, '_>, index: &HashMap<String, usize>) -> R<usize> {
+        t.require("material", |n| {
+            let name = n.str()?;
+            index.get(name).copied().ok_or_else(|| {
+                let mut known: Vec<&str> = index.keys().map(String::as_str).collect();
+                known.sort();
+                n.err(format!(
+                    "no material named \"{name}\"; defined materials: {}",
+                    known.join(", ")
+                ))
+            })
+        })
+    }
+
+    fn material(&self, n: Node<'s, '_>, range: (f64, f64)) -> R<Material> {
+        let t = n.table()?;
+        let kind = t.req_str("type")?;
+        let fraction = |key: &str, default: f64| -> R<Spectrum> {
+            let s = t.with(key, |n| {
+                let s = self.spectrum(n, SpectrumUse::Fraction)?;
+                let (lo, hi) = s.min_max_over(range);
+                if lo < 0.0 || hi > 1.0 {
+                    return Err(n.err(format!("{key} must lie in [0, 1] at every wavelength; found values from {lo} to {hi}")));
+                }
+                Ok(s)
+            })?;
+            Ok(s.unwrap_or(Spectrum::Constant(default)))
+        };
+        match kind.as_str() {
+            "absorber" => {
+                t.allow(&["type"])?;
+                Ok(Material::Absorber)
+            }
+            "lambertian" => {
+                t.allow(&["type", "reflectance", "transmittance"])?;
+                let reflectance = fraction("reflectance", 0.5)?;
+                let transmittance = fraction("transmittance", 0.0)?;
+                let (r, tr) = (&reflectance, &transmittance);
+                let mut xs = r.breakpoints(range);
+                xs.extend(tr.breakpoints(range));
+                if let Some(&x) = xs.iter().find(|&&x| r.eval(x) + tr.eval(x) > 1.0 + 1e-12) {
+                    return Err(t.err(format!(
+                        "reflectance + transmittance must not exceed 1; at {x} nm it is {} + {} = {}",
+                        r.eval(x),
+                        tr.eval(x),
+                        r.eval(x) + tr.eval(x)
+                    )));
+                }
+                Ok(Material::Lambertian { reflectance, transmittance })
+            }
+            "mirror" => {
+                t.allow(&["type", "reflectance"])?;
+                Ok(Material::Mirror { reflectance: fraction("reflectance", 1.0)? })
+            }
+            "dielectric" => {
+                t.allow(&["type", "ior", "outside_ior", "absorption_per_m"])?;
+                let ior_of = |key: &str, default: f64| -> R<Spectrum> {
+                    let s = t.with(key, |n| {
+                        let s = self.spectrum(n, SpectrumUse::Ior)?;
+                        let (lo, _) = s.min_max_over(range);
+                        if !(lo > 0.0) {
+                            return Err(n.err(format!("{key} must be positive at every wavelength; found {lo}")));
+                        }
+                        Ok(s)
+                    })?;
+                    Ok(s.unwrap_or(Spectrum::Constant(default)))
+                };
+                let ior = ior_of("ior", 1.5)?;
+                let outside_ior = ior_of("outside_ior", 1.0)?;
+                let absorption_per_m = t.with("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
+                Ok(Material::Dielectric { ior, outside_ior, absorption_per_m })
+            }
+            other => Err(t.with("type", |n| {
+                Ok(n.err(format!("unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric")))
+            })?
+            .unwrap()),
+        }
+    }
+
+    fn distribution(&self, n: Node<'s, '_>) -> R<Distribution> {
+        if n.is_table() {
+            let t = n.table()?;
+            t.allow(&["cosine_power"])?;
+            let p = t.require("cosine_power", |n| {
+                let p = n.f64()?;
+                if p < 0.0 {
+                    return Err(n.err(format!("cosine_power must be >= 0, found {p}")));
+                }
+                Ok(p)
+            })?;
+            return Ok(Distribution::CosinePower(p));
+        }
+        match n.str()? {
+            "lambertian" => Ok(Distribution::Lambertian),
+            "isotropic" => Ok(Distribution::Isotropic),
+            "collimated" => Ok(Distribution::Collimated),
+            other => Err(n.err(format!(
+                "unknown distribution \"{other}\"; known: \"lambertian\", \"isotropic\", \"collimated\", {{ cosine_power = n }}"
+            ))),
+        }
+    }
+
+    fn camera(&self, t: Table<'s, '_>) -> R<Camera> {
+        t.allow(&["position", "look_at", "up", "fov_deg", "resolution"])?;
+        let position = DVec3::from(t.req_vec3("position")?);
+        let look_at = DVec3::from(t.req_vec3("look_at")?);
+        let up = DVec3::from(t.vec3("up")?.unwrap_or([0.0, 1.0, 0.0]));
+        let forward = look_at - position;
+        if forward.length() == 0.0 {
+            return Err(t
+                .with("look_at", |n| {
+                    Ok(n.err(
+                        "look_at equals position: the camera has a zero-length view direction",
+                    ))
+                })?
+                .unwrap());
+        }
+        if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-9 {
+            return Err(t
+                .with("up", |n| {
+                    Ok(n.err("up must be non-zero and not parallel to the view direction"))
+                })?
+                .unwrap_or_else(|| {
+                    t.err("the default up [0, 1, 0] is parallel to the view direction: give `up`")
+                }));
+        }
+        let fov_deg = t.req_f64("fov_deg")?;
+        if !(fov_deg > 0.0 && fov_deg < 180.0) {
+            return Err(t
+                .with("fov_deg", |n| {
+                    Ok(n.err(format!("fov_deg must be in (0, 180), found {fov_deg}")))
+                })?
+                .unwrap());
+        }
+        let resolution = t
+            .with("resolution", |n| {
+                let r = n.each(|x| x.u64())?;
+                if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0] > 65536 || r[1] > 65536 {
+                    return Err(n.err("expected [width, height], each between 1 and 65536"));
+                }
+                Ok([r[0] as u32, r[1] as u32])
+            })?
+            .unwrap_or([512, 512]);
+        Ok(Camera {
+            position,
+            look_at,
+            up,
+            fov_deg,
+            resolution,
+        })
+    }
+
+    /// A spectrum: a number, `{ blackbody_k }`, `{ file }`, `{ table }`, or (ior only) `{ cauchy }`.
+    fn spectrum(&self, n: Node<'s, '_>, usage: SpectrumUse) -> R<Spectrum> {
+        if n.is_number() {
+            let v = n.f64()?;
+            if v < 0.0 {
+                return Err(n.err(format!("must not be negative, found {v}")));
+            }
+            return Ok(Spectrum::Constant(v));
+        }
+        if !n.is_table() {
+            return Err(n.err("expected a number or a spectrum table: { blackbody_k = T }, { file = \"x.csv\" }, { table = [[nm, value], ...] }"));
+        }
+        let t = n.table()?;
+        let keys: Vec<&str> = t.keys().collect();
+        let allowed: &[&str] = match usage {
+            SpectrumUse::Emission => &["blackbody_k", "file", "table"],
+            SpectrumUse::Ior => &["file", "table", "cauchy"],
+            SpectrumUse::Fraction | SpectrumUse::NonNegative => &["file", "table"],
+        };
+        t.allow(allowed)?;
+        if keys.len() != 1 {
+            return Err(t.err(format!(
+                "a spectrum table takes exactly one of: {}",
+                allowed.join(", ")
+            )));
+        }
+        match keys[0] {
+            "blackbody_k" => {
+                let k = t.req_f64("blackbody_k")?;
+                if k <= 0.0 {
+                    return Err(t
+                        .with("blackbody_k", |n| {
+                            Ok(n.err(format!("temperature must be positive, found {k}")))
+                        })?
+                        .unwrap());
+                }
+                Ok(Spectrum::Blackbody { kelvin: k })
+            }
+            "cauchy" => t.require("cauchy", |n| {
+                let c = n.each(|x| x.f64())?;
+                if c.len() != 2 {
+                    return Err(n.err("expected cauchy = [A, B_um2]"));
+                }
+                Ok(Spectrum::Cauchy {
+                    a: c[0],
+                    b_um2: c[1],
+                })
+            }),
+            "table" => t.require("table", |n| {
+                let points = n.each(|row| {
+                    let v = row.each(|x| x.f64())?;
+                    if v.len() != 2 {
+                        return Err(row.err("expected a [wavelength_nm, value] pair"));
+                    }
+                    Ok((v[0], v[1]))
+                })?;
+                check_table(&points).map_err(|(i, m)| {
+                    let p = index_path(n.path, i);
+                    let item = &n.array().unwrap()[i];
+                    Node {
+                        src: n.src,
+                        path: &p,
+                        value: item,
+                    }
+                    .err(m)
+                })?;
+                Ok(Spectrum::Table(points))
+            }),
+            "file" => t.require("file", |n| {
+                let rel = n.str()?;
+                let path = self.base_dir.join(rel);
+                read_spectrum_csv(&path).map_err(|mut e| {
+                    e.message = format!(
+                        "{} (spectrum file named by `{}` at {}:{})",
+                        e.message,
+                        n.path,
+                        self.src.file.display(),
+                        self.src.line_of(n.value.span().start)
+                    );
+                    e
+                })
+            }),
+            _ => unreachable!(),
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+enum SpectrumUse {
+    Emission,
+    Fraction,
+    Ior,
+    NonNegative,
+}
+
+/// Wavelengths strictly increasing and positive; values non-negative. Err((row, message)).
+fn check_table(points: &[(f64, f64)]) -> Result<(), (usize, String)> {
+    if points.is_empty() {
+        return Err((
+            0,
+            "a spectrum table needs at least one [wavelength_nm, value] row".into(),
+        ));
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.0 <= 0.0 {
+            return Err((i, format!("wavelength must be positive, found {}", p.0)));
+        }
+        if p.1 < 0.0 {
+            return Err((
+                i,
+                format!(
+                    "spectrum values must not be negative, found {} at {} nm",
+                    p.1, p.0
+                ),
+            ));
+        }
+        if i > 0 && p.0 <= points[i - 1].0 {
+            return Err((
+                i,
+                format!(
+                    "wavelengths must be sorted and strictly increasing: {} nm follows {} nm",
+                    p.0,
+                    points[i - 1].0
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Two columns `wavelength_nm,value` after one header line.
+pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::new(path, "", None, format!("cannot read spectrum file: {e}")))?;
+    let mut points = Vec::new();
+    let mut lines_of_rows = Vec::new();
+    for (i, line) in text.lines().enumerate().skip(1) {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+        let parse = |s: &str| s.parse::<f64>().ok().filter(|v| v.is_finite());
+        match (
+            cols.len(),
+            cols.first().and_then(|s| parse(s)),
+            cols.get(1).and_then(|s| parse(s)),
+        ) {
+            (2, Some(w), Some(v)) => {
+                points.push((w, v));
+                lines_of_rows.push(i + 1);
+            }
+            _ => {
+                return Err(InputError::new(
+                    path,
+                    "",
+                    Some(i + 1),
+                    format!(
+                        "expected `wavelength_nm,value` (two finite numbers), found \"{line}\""
+                    ),
+                ))
+            }
+        }
+    }
+    if text.lines().next().is_none() {
+        return Err(InputError::new(
+            path,
+            "",
+            None,
+            "the spectrum file is empty",
+        ));
+    }
+    check_table(&points).map_err(|(row, m)| {
+        InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m)
+    })?;
+    Ok(Spectrum::Table(points))
+}
+
+fn simplify(s: &mut Spectrum, range: (f64, f64)) {
+    if let Some(c) = s.constant_over(range) {
+        *s = Spectrum::Constant(c);
+    }
+}
+
+fn simplify_material(m: &mut Material, range: (f64, f64)) {
+    match m {
+        Material::Absorber => {}
+        Material::Lambertian {
+            reflectance,
+            transmittance,
+        } => {
+            simplify(reflectance, range);
+            simplify(transmittance, range);
+        }
+        Material::Mirror { reflectance } => simplify(reflectance, range),
+        Material::Dielectric {
+            ior,
+            outside_ior,
+            absorption_per_m,
+        } => {
+            simplify(ior, range);
+            simplify(outside_ior, range);
+            if let Some(a) = absorption_per_m {
+                simplify(a, range);
+            }
+        }
+    }
+}

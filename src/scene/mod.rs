@@ -1,0 +1,241 @@
+//! The scene: everything a run needs, in SI units and triangles, checked once at load time.
+//! Nothing here knows about sampling or the BVH's internals; `load` turns TOML into a `Scene`.
+
+mod doc;
+mod load;
+mod obj;
+mod shapes;
+
+use std::path::PathBuf;
+
+use glam::DVec3;
+
+use crate::geometry::Geometry;
+use crate::spectrum::Spectrum;
+
+pub use load::{load, load_str};
+
+#[derive(Clone, Debug)]
+pub struct Simulation {
+    pub photons: u64,
+    pub seed: u64,
+    pub max_bounces: u32,
+    pub wavelength_range_nm: (f64, f64),
+    /// Which of the above were written in the file (a flag may still override them).
+    pub photons_given: bool,
+}
+
+#[derive(Clone, Debug)]
+pub enum Material {
+    Absorber,
+    /// Diffuse reflection and optional diffuse transmission; ρ + τ ≤ 1 at every wavelength.
+    Lambertian {
+        reflectance: Spectrum,
+        transmittance: Spectrum,
+    },
+    Mirror {
+        reflectance: Spectrum,
+    },
+    /// Smooth boundary between `outside_ior` (front, the normals' side) and `ior` (inside).
+    Dielectric {
+        ior: Spectrum,
+        outside_ior: Spectrum,
+        absorption_per_m: Option<Spectrum>,
+    },
+}
+
+impl Material {
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Material::Absorber => "absorber",
+            Material::Lambertian { .. } => "lambertian",
+            Material::Mirror { .. } => "mirror",
+            Material::Dielectric { .. } => "dielectric",
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct NamedMaterial {
+    pub name: String,
+    pub material: Material,
+}
+
+/// A named, tallied surface: the triangles of one `[[surfaces]]` entry or of one area light.
+#[derive(Clone, Debug)]
+pub struct Surface {
+    pub name: String,
+    pub material: usize,
+    pub area_m2: f64,
+    pub triangles: usize,
+    /// Index into `Scene::lights` when this surface is an area light's.
+    pub light: Option<usize>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Distribution {
+    /// Radiance constant over the hemisphere: intensity ∝ cosθ.
+    Lambertian,
+    /// Intensity constant: over the sphere for a point light, the front hemisphere for an area light.
+    Isotropic,
+    /// Every photon leaves along one direction (the area light's normal, or a point light's `direction`).
+    Collimated,
+    /// Intensity ∝ cosⁿθ about the axis.
+    CosinePower(f64),
+}
+
+impl Distribution {
+    pub fn describe(&self) -> String {
+        match self {
+            Distribution::Lambertian => "lambertian".into(),
+            Distribution::Isotropic => "isotropic".into(),
+            Distribution::Collimated => "collimated".into(),
+            Distribution::CosinePower(n) => format!("cosine_power {n}"),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+pub enum LightShape {
+    /// Emits from the front of surface `surface`'s triangles.
+    Area { surface: usize },
+    /// Emits from a point; `axis` is the direction of collimated or cosine-power emission.
+    Point { position: DVec3, axis: DVec3 },
+}
+
+#[derive(Clone, Debug)]
+pub struct Light {
+    pub name: String,
+    pub shape: LightShape,
+    pub power_w: f64,
+    /// Shape of the spectral power over the wavelength range (its scale is irrelevant).
+    pub spectrum: Spectrum,
+    pub distribution: Distribution,
+}
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub position: DVec3,
+    pub look_at: DVec3,
+    pub up: DVec3,
+    pub fov_deg: f64,
+    pub resolution: [u32; 2],
+}
+
+/// The physical effects a scene calls for: what the simulator must pay for.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Effects {
+    /// Some material varies with wavelength: each photon carries a sampled wavelength.
+    pub spectral: bool,
+    pub diffuse_reflection: bool,
+    pub diffuse_transmission: bool,
+    pub specular_reflection: bool,
+    pub refraction: bool,
+    pub dispersion: bool,
+    pub absorbing_media: bool,
+    pub camera: bool,
+}
+
+impl Effects {
+    pub fn names(&self) -> Vec<&'static str> {
+        let all = [
+            (self.spectral, "spectral"),
+            (self.diffuse_reflection, "diffuse_reflection"),
+            (self.diffuse_transmission, "diffuse_transmission"),
+            (self.specular_reflection, "specular_reflection"),
+            (self.refraction, "refraction"),
+            (self.dispersion, "dispersion"),
+            (self.absorbing_media, "absorbing_media"),
+            (self.camera, "camera"),
+        ];
+        all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()
+    }
+
+    pub fn transport(&self) -> &'static str {
+        if self.spectral {
+            "spectral"
+        } else {
+            "grey"
+        }
+    }
+}
+
+pub struct Scene {
+    pub path: PathBuf,
+    pub simulation: Simulation,
+    pub materials: Vec<NamedMaterial>,
+    pub surfaces: Vec<Surface>,
+    pub lights: Vec<Light>,
+    pub camera: Option<Camera>,
+    pub geometry: Geometry,
+    pub effects: Effects,
+}
+
+impl Scene {
+    /// The file name without extension: the default output folder's name.
+    pub fn stem(&self) -> String {
+        self.path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into())
+    }
+
+    pub fn total_power_w(&self) -> f64 {
+        self.lights.iter().map(|l| l.power_w).sum()
+    }
+
+    pub fn material_of(&self, surface: usize) -> &Material {
+        &self.materials[self.surfaces[surface].material].material
+    }
+}
+
+/// Which effects the scene's materials and camera call for. A spectrum constant over the
+/// wavelength range counts as grey.
+pub fn effects_of(
+    materials: &[NamedMaterial],
+    used: &[bool],
+    range: (f64, f64),
+    camera: bool,
+) -> Effects {
+    let mut fx = Effects {
+        camera,
+        ..Effects::default()
+    };
+    let varies = |s: &Spectrum| s.constant_over(range).is_none();
+    let positive = |s: &Spectrum| s.min_max_over(range).1 > 0.0;
+    for (m, _) in materials.iter().zip(used).filter(|(_, u)| **u) {
+        match &m.material {
+            Material::Absorber => {}
+            Material::Lambertian {
+                reflectance,
+                transmittance,
+            } => {
+                fx.diffuse_reflection |= positive(reflectance);
+                fx.diffuse_transmission |= positive(transmittance);
+                fx.spectral |= varies(reflectance) || varies(transmittance);
+            }
+            Material::Mirror { reflectance } => {
+                fx.specular_reflection |= positive(reflectance);
+                fx.spectral |= varies(reflectance);
+            }
+            Material::Dielectric {
+                ior,
+                outside_ior,
+                absorption_per_m,
+            } => {
+                fx.specular_reflection = true;
+                fx.refraction = true;
+                let dispersive = varies(ior) || varies(outside_ior);
+                fx.dispersion |= dispersive;
+                fx.spectral |= dispersive;
+                if let Some(a) = absorption_per_m {
+                    if positive(a) {
+                        fx.absorbing_media = true;
+                        fx.spectral |= varies(a);
+                    }
+                }
+            }
+        }
+    }
+    fx
+}

@@ -1,0 +1,205 @@
+//! Spectra: constant, tabulated (piecewise linear, zero outside the table), blackbody and
+//! Cauchy dispersion; and the tabulated CDF used to sample a wavelength by inverse transform.
+
+/// Planck's constant (J s), speed of light (m/s), Boltzmann's constant (J/K); CODATA 2018 exact values.
+const PLANCK_H: f64 = 6.626_070_15e-34;
+const LIGHT_C: f64 = 299_792_458.0;
+const BOLTZMANN_K: f64 = 1.380_649e-23;
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum Spectrum {
+    Constant(f64),
+    /// (wavelength_nm, value), wavelengths strictly increasing; linear between points, zero outside.
+    Table(Vec<(f64, f64)>),
+    /// Planck spectral radiance at temperature `kelvin`, in W m^-2 sr^-1 nm^-1.
+    Blackbody {
+        kelvin: f64,
+    },
+    /// Cauchy's equation n(λ) = A + B/λ², with λ in micrometres (B in µm²).
+    Cauchy {
+        a: f64,
+        b_um2: f64,
+    },
+}
+
+/// Planck's law: B(λ, T) = 2hc²/λ⁵ / (exp(hc/(λkT)) − 1), per metre of wavelength; returned per nm.
+pub fn planck_w_m2_sr_nm(lambda_nm: f64, kelvin: f64) -> f64 {
+    let lambda_m = lambda_nm * 1e-9;
+    let x = PLANCK_H * LIGHT_C / (lambda_m * BOLTZMANN_K * kelvin);
+    2.0 * PLANCK_H * LIGHT_C * LIGHT_C / lambda_m.powi(5) / x.exp_m1() * 1e-9
+}
+
+impl Spectrum {
+    #[inline]
+    pub fn eval(&self, lambda_nm: f64) -> f64 {
+        match self {
+            Spectrum::Constant(c) => *c,
+            Spectrum::Table(points) => table_eval(points, lambda_nm),
+            Spectrum::Blackbody { kelvin } => planck_w_m2_sr_nm(lambda_nm, *kelvin),
+            Spectrum::Cauchy { a, b_um2 } => {
+                let um = lambda_nm * 1e-3;
+                a + b_um2 / (um * um)
+            }
+        }
+    }
+
+    /// Some(c) when the spectrum takes the single value c everywhere in `range`.
+    pub fn constant_over(&self, range: (f64, f64)) -> Option<f64> {
+        match self {
+            Spectrum::Constant(c) => Some(*c),
+            Spectrum::Table(points) => {
+                let first = points.first()?;
+                let last = points.last()?;
+                let covers = first.0 <= range.0 && last.0 >= range.1;
+                let all_equal = points.iter().all(|p| p.1 == first.1);
+                (covers && all_equal).then_some(first.1)
+            }
+            Spectrum::Cauchy { a, b_um2 } => (*b_um2 == 0.0).then_some(*a),
+            Spectrum::Blackbody { .. } => None,
+        }
+    }
+
+    /// Smallest and largest value over `range` (exact for tables; sampled at 1 nm otherwise).
+    pub fn min_max_over(&self, range: (f64, f64)) -> (f64, f64) {
+        let mut lo = f64::INFINITY;
+        let mut hi = f64::NEG_INFINITY;
+        for x in self.breakpoints(range) {
+            let v = self.eval(x);
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        (lo, hi)
+    }
+
+    /// Wavelengths at which the spectrum is exactly linear in between: the range ends, the
+    /// table's own points inside the range, or a 1 nm grid for analytic spectra.
+    pub fn breakpoints(&self, range: (f64, f64)) -> Vec<f64> {
+        let (a, b) = range;
+        let mut xs = vec![a];
+        match self {
+            Spectrum::Constant(_) => {}
+            Spectrum::Table(points) => {
+                xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b))
+            }
+            Spectrum::Blackbody { .. } | Spectrum::Cauchy { .. } => {
+                let mut x = a.floor() + 1.0;
+                while x < b {
+                    xs.push(x);
+                    x += 1.0;
+                }
+            }
+        }
+        xs.push(b);
+        xs
+    }
+
+    /// ∫ over `range` of the spectrum, in value·nm (trapezoid between breakpoints: exact for tables).
+    pub fn integral(&self, range: (f64, f64)) -> f64 {
+        let xs = self.breakpoints(range);
+        xs.windows(2)
+            .map(|w| 0.5 * (self.eval(w[0]) + self.eval(w[1])) * (w[1] - w[0]))
+            .sum()
+    }
+}
+
+fn table_eval(points: &[(f64, f64)], x: f64) -> f64 {
+    let i = points.partition_point(|p| p.0 < x);
+    if i == 0 {
+        return if points.first().is_some_and(|p| p.0 == x) {
+            points[0].1
+        } else {
+            0.0
+        };
+    }
+    if i == points.len() {
+        return 0.0;
+    }
+    let (x0, y0) = points[i - 1];
+    let (x1, y1) = points[i];
+    y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+}
+
+/// Inverse-CDF sampler of a wavelength from a non-negative spectrum that is piecewise linear
+/// between breakpoints: pick the segment by its integral, then invert the segment's quadratic
+/// CDF exactly. No rejection loop.
+#[derive(Clone, Debug)]
+pub struct SpectralSampler {
+    xs: Vec<f64>,
+    ys: Vec<f64>,
+    /// cdf[i] = ∫ from xs[0] to xs[i], unnormalised; cdf.last() is the total.
+    cdf: Vec<f64>,
+}
+
+impl SpectralSampler {
+    /// None when the spectrum integrates to zero over the range.
+    pub fn new(spectrum: &Spectrum, range: (f64, f64)) -> Option<Self> {
+        let xs = spectrum.breakpoints(range);
+        let ys: Vec<f64> = xs.iter().map(|&x| spectrum.eval(x).max(0.0)).collect();
+        let mut cdf = Vec::with_capacity(xs.len());
+        cdf.push(0.0);
+        for i in 1..xs.len() {
+            cdf.push(cdf[i - 1] + 0.5 * (ys[i - 1] + ys[i]) * (xs[i] - xs[i - 1]));
+        }
+        let total = *cdf.last().unwrap();
+        (total > 0.0 && total.is_finite()).then_some(SpectralSampler { xs, ys, cdf })
+    }
+
+    pub fn total(&self) -> f64 {
+        *self.cdf.last().unwrap()
+    }
+
+    /// λ with density f(λ)/∫f, from one uniform u in [0, 1).
+    pub fn sample(&self, u: f64) -> f64 {
+        let target = u * self.total();
+        // Segment i spans xs[i]..xs[i+1]; first segment whose upper cdf exceeds target.
+        let i = (self.cdf.partition_point(|&c| c <= target).max(1) - 1).min(self.xs.len() - 2);
+        let (x0, x1) = (self.xs[i], self.xs[i + 1]);
+        let (f0, f1) = (self.ys[i], self.ys[i + 1]);
+        let w = x1 - x0;
+        let r = (target - self.cdf[i]).max(0.0);
+        // Solve f0·x + (f1−f0)·x²/(2w) = r for x in [0, w], in the cancellation-free form
+        // x = 2r / (f0 + sqrt(f0² + 2(f1−f0)r/w)).
+        let disc = (f0 * f0 + 2.0 * (f1 - f0) * r / w).max(0.0);
+        let denom = f0 + disc.sqrt();
+        let x = if denom > 0.0 { 2.0 * r / denom } else { 0.0 };
+        (x0 + x.clamp(0.0, w)).min(x1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_interpolates_and_is_zero_outside() {
+        let s = Spectrum::Table(vec![(400.0, 1.0), (500.0, 3.0)]);
+        assert_eq!(s.eval(450.0), 2.0);
+        assert_eq!(s.eval(400.0), 1.0);
+        assert_eq!(s.eval(500.0), 3.0);
+        assert_eq!(s.eval(399.0), 0.0);
+        assert_eq!(s.eval(501.0), 0.0);
+        assert_eq!(s.integral((400.0, 500.0)), 200.0);
+    }
+
+    #[test]
+    fn sampler_matches_linear_pdf_cdf() {
+        // f(λ) = λ − 400 on [400, 500]: CDF(λ) = ((λ−400)/100)², so λ(u) = 400 + 100·√u exactly.
+        let s = Spectrum::Table(vec![(400.0, 0.0), (500.0, 100.0)]);
+        let sampler = SpectralSampler::new(&s, (400.0, 500.0)).unwrap();
+        for k in 0..100 {
+            let u = k as f64 / 100.0;
+            assert!((sampler.sample(u) - (400.0 + 100.0 * u.sqrt())).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn planck_peak_follows_wien() {
+        // Wien's displacement law: λ_max = b/T with b = 2.897771955e-3 m·K.
+        let t = 5000.0;
+        let peak = (300..1000)
+            .map(|l| l as f64)
+            .max_by(|a, b| planck_w_m2_sr_nm(*a, t).total_cmp(&planck_w_m2_sr_nm(*b, t)))
+            .unwrap();
+        assert!((peak - 2.897771955e6 / t).abs() <= 1.0);
+    }
+}

@@ -1,0 +1,208 @@
+//! Per-surface tallies with standard errors, and the energy ledger.
+//!
+//! Estimator: each photon history i scores x_i (its weight arriving at, or absorbed by, a surface,
+//! summed over the history, times Φ_total). The tally is x̄ = (1/N)Σx_i with standard error
+//! s = sqrt((⟨x²⟩ − x̄²)/(N − 1)). Histories are independent, so s falls as 1/√N.
+
+/// Σx and Σx² over histories, in units of the photon's emitted weight.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Moments {
+    pub sum: f64,
+    pub sum_sq: f64,
+}
+
+impl Moments {
+    #[inline]
+    pub fn add_history(&mut self, x: f64) {
+        self.sum += x;
+        self.sum_sq += x * x;
+    }
+
+    pub fn merge(&mut self, other: &Moments) {
+        self.sum += other.sum;
+        self.sum_sq += other.sum_sq;
+    }
+
+    /// (mean, standard error of the mean) of the per-history score times `scale`.
+    pub fn estimate(&self, n: u64, scale: f64) -> (f64, f64) {
+        if n == 0 {
+            return (0.0, 0.0);
+        }
+        let nf = n as f64;
+        let mean = self.sum / nf;
+        let var = if n > 1 {
+            ((self.sum_sq / nf - mean * mean).max(0.0)) / (nf - 1.0)
+        } else {
+            0.0
+        };
+        (mean * scale, var.sqrt() * scale)
+    }
+}
+
+/// Accumulates one history's scores per surface, then folds them into `Moments` when the history
+/// ends, so Σx² is over whole histories (a photon hitting a surface twice scores 2, not 1 + 1).
+pub struct HistoryScores {
+    value: Vec<f64>,
+    touched: Vec<u32>,
+}
+
+impl HistoryScores {
+    pub fn new(surfaces: usize) -> Self {
+        HistoryScores {
+            value: vec![0.0; surfaces],
+            touched: Vec::with_capacity(64),
+        }
+    }
+
+    #[inline]
+    pub fn add(&mut self, surface: u32, x: f64) {
+        let v = &mut self.value[surface as usize];
+        if *v == 0.0 {
+            self.touched.push(surface);
+        }
+        *v += x;
+    }
+
+    /// Ends the history: each touched surface's score goes into `into`, and the buffer is cleared.
+    #[inline]
+    pub fn flush(&mut self, into: &mut [Moments]) {
+        for &s in &self.touched {
+            let v = &mut self.value[s as usize];
+            into[s as usize].add_history(*v);
+            *v = 0.0;
+        }
+        self.touched.clear();
+    }
+}
+
+/// Everything one batch (or a whole run, once batches are merged in order) has tallied.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tallies {
+    pub photons: u64,
+    pub incident: Vec<Moments>,
+    pub absorbed: Vec<Moments>,
+    /// Weight that left the scene, and weight still in flight at the bounce cap.
+    pub escaped: f64,
+    pub truncated: f64,
+    /// Scattering events, for the mean path length.
+    pub scatterings: u64,
+}
+
+impl Tallies {
+    pub fn new(surfaces: usize) -> Self {
+        Tallies {
+            photons: 0,
+            incident: vec![Moments::default(); surfaces],
+            absorbed: vec![Moments::default(); surfaces],
+            escaped: 0.0,
+            truncated: 0.0,
+            scatterings: 0,
+        }
+    }
+
+    /// Adds a batch. Called in batch-index order, so the f64 sums are the same for any thread count.
+    pub fn merge(&mut self, b: &Tallies) {
+        self.photons += b.photons;
+        for (a, x) in self.incident.iter_mut().zip(&b.incident) {
+            a.merge(x);
+        }
+        for (a, x) in self.absorbed.iter_mut().zip(&b.absorbed) {
+            a.merge(x);
+        }
+        self.escaped += b.escaped;
+        self.truncated += b.truncated;
+        self.scatterings += b.scatterings;
+    }
+
+    /// Power per unit of photon weight: every photon is born with weight 1 and power Φ/N.
+    pub fn watts_per_weight(&self, emitted_w: f64) -> f64 {
+        if self.photons == 0 {
+            0.0
+        } else {
+            emitted_w / self.photons as f64
+        }
+    }
+
+    pub fn ledger(&self, emitted_w: f64) -> Ledger {
+        let w = self.watts_per_weight(emitted_w);
+        Ledger {
+            emitted_w,
+            absorbed_w: self.absorbed.iter().map(|m| m.sum).sum::<f64>() * w,
+            escaped_w: self.escaped * w,
+            truncated_w: self.truncated * w,
+        }
+    }
+
+    /// Largest relative standard error over the chosen surfaces' non-zero estimates
+    /// (incident and absorbed); None when none is non-zero yet.
+    pub fn worst_rel_error(&self, surfaces: &[usize]) -> Option<f64> {
+        let mut worst: Option<f64> = None;
+        for &s in surfaces {
+            for m in [&self.incident[s], &self.absorbed[s]] {
+                let (mean, se) = m.estimate(self.photons, 1.0);
+                if mean > 0.0 {
+                    worst = Some(worst.map_or(se / mean, |w: f64| w.max(se / mean)));
+                }
+            }
+        }
+        worst
+    }
+}
+
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct Ledger {
+    pub emitted_w: f64,
+    pub absorbed_w: f64,
+    pub escaped_w: f64,
+    pub truncated_w: f64,
+}
+
+impl Ledger {
+    /// |emitted − (absorbed + escaped + truncated)| / emitted.
+    pub fn relative_residual(&self) -> f64 {
+        ((self.emitted_w - (self.absorbed_w + self.escaped_w + self.truncated_w)) / self.emitted_w)
+            .abs()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn history_scores_square_whole_histories() {
+        let mut m = vec![Moments::default(); 2];
+        let mut h = HistoryScores::new(2);
+        h.add(0, 1.0);
+        h.add(0, 1.0);
+        h.flush(&mut m);
+        h.add(1, 1.0);
+        h.flush(&mut m);
+        assert_eq!(
+            m[0],
+            Moments {
+                sum: 2.0,
+                sum_sq: 4.0
+            }
+        );
+        assert_eq!(
+            m[1],
+            Moments {
+                sum: 1.0,
+                sum_sq: 1.0
+            }
+        );
+    }
+
+    #[test]
+    fn standard_error_of_bernoulli_scores() {
+        // Scores 1 with probability 1/4 over N = 4: mean 1/4, sample variance (1/4 − 1/16)/(N−1).
+        let m = Moments {
+            sum: 1.0,
+            sum_sq: 1.0,
+        };
+        let (mean, se) = m.estimate(4, 1.0);
+        assert_eq!(mean, 0.25);
+        assert!((se - ((0.25f64 - 0.0625) / 3.0).sqrt()).abs() < 1e-15);
+    }
+}
