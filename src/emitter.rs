@@ -7,8 +7,7 @@ use glam::Vec3A;
 
 use crate::geometry::{offset_ray_origin, NO_PRIM};
 use crate::sampling::{
-    cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle,
-    Discrete, Sampler,
+    cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle, Discrete, Sampler,
 };
 use crate::scene::{Distribution, LightShape, Scene};
 use crate::spectrum::SpectralSampler;
@@ -63,49 +62,30 @@ impl Emitter {
             .map(|l| {
                 let origin = match &l.shape {
                     LightShape::Area { surface } => {
-                        let prims: Vec<u32> = (0..geo.len() as u32)
-                            .filter(|&p| geo.surface[p as usize] == *surface as u32)
-                            .collect();
+                        let prims: Vec<u32> =
+                            (0..geo.len() as u32).filter(|&p| geo.surface[p as usize] == *surface as u32).collect();
                         let areas: Vec<f64> = prims.iter().map(|&p| geo.area(p as usize)).collect();
-                        Origin::Area {
-                            pick: Discrete::new(&areas),
-                            prims,
-                        }
+                        Origin::Area { pick: Discrete::new(&areas), prims }
                     }
-                    LightShape::Point { position, axis } => Origin::Point {
-                        position: position.as_vec3a(),
-                        axis: axis.as_vec3a().normalize(),
-                    },
+                    LightShape::Point { position, axis } => {
+                        Origin::Point { position: position.as_vec3a(), axis: axis.as_vec3a().normalize() }
+                    }
                 };
-                EmitLight {
-                    origin,
-                    distribution: l.distribution,
-                    spectrum: SpectralSampler::new(&l.spectrum, range),
-                }
+                EmitLight { origin, distribution: l.distribution, spectrum: SpectralSampler::new(&l.spectrum, range) }
             })
             .collect();
         let powers: Vec<f64> = scene.lights.iter().map(|l| l.power_w).collect();
-        Emitter {
-            pick: Discrete::new(&powers),
-            lights,
-            total_power_w: powers.iter().sum(),
-        }
+        Emitter { pick: Discrete::new(&powers), lights, total_power_w: powers.iter().sum() }
     }
 
     /// Samples one photon. With `SPECTRAL` false no wavelength is drawn.
     #[inline]
-    pub fn emit<const SPECTRAL: bool>(
-        &self,
-        geo: &crate::geometry::Geometry,
-        s: &mut Sampler,
-    ) -> Birth {
+    pub fn emit<const SPECTRAL: bool>(&self, geo: &crate::geometry::Geometry, s: &mut Sampler) -> Birth {
         let light = self.pick.sample(s.uniform());
         let l = &self.lights[light];
         let lambda_nm = if SPECTRAL {
             // The loader guarantees a positive spectral integral, so a sampler exists.
-            l.spectrum
-                .as_ref()
-                .map_or(f64::NAN, |sp| sp.sample(s.uniform()))
+            l.spectrum.as_ref().map_or(f64::NAN, |sp| sp.sample(s.uniform()))
         } else {
             f64::NAN
         };
@@ -118,30 +98,14 @@ impl Emitter {
                 let normal = geo.normals[prim as usize];
                 let dir = direction(l.distribution, normal, s);
                 let origin = offset_ray_origin(point, err, normal, dir);
-                Birth {
-                    light,
-                    point,
-                    origin,
-                    dir,
-                    normal,
-                    prim,
-                    lambda_nm,
-                }
+                Birth { light, point, origin, dir, normal, prim, lambda_nm }
             }
             Origin::Point { position, axis } => {
                 let dir = match l.distribution {
                     Distribution::Isotropic => uniform_sphere(s.uniform_f32(), s.uniform_f32()),
                     other => direction(other, *axis, s),
                 };
-                Birth {
-                    light,
-                    point: *position,
-                    origin: *position,
-                    dir,
-                    normal: Vec3A::ZERO,
-                    prim: NO_PRIM,
-                    lambda_nm,
-                }
+                Birth { light, point: *position, origin: *position, dir, normal: Vec3A::ZERO, prim: NO_PRIM, lambda_nm }
             }
         }
     }
@@ -154,8 +118,6 @@ fn direction(d: Distribution, n: Vec3A, s: &mut Sampler) -> Vec3A {
         Distribution::Lambertian => cosine_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
         Distribution::Isotropic => uniform_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
         Distribution::Collimated => n,
-        Distribution::CosinePower(e) => {
-            cosine_power_lobe(n, e as f32, s.uniform_f32(), s.uniform_f32())
-        }
+        Distribution::CosinePower(e) => cosine_power_lobe(n, e as f32, s.uniform_f32(), s.uniform_f32()),
     }
 }

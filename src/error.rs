@@ -15,18 +15,8 @@ pub struct InputError {
 }
 
 impl InputError {
-    pub fn new(
-        file: &Path,
-        key: impl Into<String>,
-        line: Option<usize>,
-        message: impl Into<String>,
-    ) -> Self {
-        InputError {
-            file: file.to_path_buf(),
-            key: key.into(),
-            line,
-            message: message.into(),
-        }
+    pub fn new(file: &Path, key: impl Into<String>, line: Option<usize>, message: impl Into<String>) -> Self {
+        InputError { file: file.to_path_buf(), key: key.into(), line, message: message.into() }
     }
 }
 

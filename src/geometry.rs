@@ -44,42 +44,18 @@ impl Geometry {
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Self {
         assert_eq!(tris.len(), surface.len());
         if tris.is_empty() {
-            return Geometry {
-                verts: vec![],
-                normals: vec![],
-                surface: vec![],
-                bvh: None,
-            };
+            return Geometry { verts: vec![], normals: vec![], surface: vec![], bvh: None };
         }
-        let bvh_tris: Vec<Triangle> = tris
-            .iter()
-            .map(|t| Triangle {
-                v0: t[0],
-                v1: t[1],
-                v2: t[2],
-            })
-            .collect();
-        let mut bvh = build_cwbvh_from_tris(
-            &bvh_tris,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
+        let bvh_tris: Vec<Triangle> = tris.iter().map(|t| Triangle { v0: t[0], v1: t[1], v2: t[2] }).collect();
+        let mut bvh = build_cwbvh_from_tris(&bvh_tris, BvhBuildParams::medium_build(), &mut Duration::default());
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
         for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
             *idx = k as u32;
         }
-        let normals = verts
-            .iter()
-            .map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize())
-            .collect();
-        Geometry {
-            verts,
-            normals,
-            surface,
-            bvh: Some(bvh),
-        }
+        let normals = verts.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize()).collect();
+        Geometry { verts, normals, surface, bvh: Some(bvh) }
     }
 
     pub fn len(&self) -> usize {
@@ -115,11 +91,7 @@ impl Geometry {
                 None => f32::INFINITY,
             }
         });
-        found.then(|| Hit {
-            t: hit.t,
-            prim: hit.primitive_id,
-            b: bary,
-        })
+        found.then(|| Hit { t: hit.t, prim: hit.primitive_id, b: bary })
     }
 
     /// True when nothing blocks the open segment from `origin` to `origin + t_max·dir`.
@@ -132,8 +104,7 @@ impl Geometry {
             if id as u32 == skip {
                 return f32::INFINITY;
             }
-            intersect_triangle(r.origin, r.direction, r.tmax, &self.verts[id])
-                .map_or(f32::INFINITY, |h| h.0)
+            intersect_triangle(r.origin, r.direction, r.tmax, &self.verts[id]).map_or(f32::INFINITY, |h| h.0)
         })
     }
 
@@ -204,12 +175,7 @@ fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
 /// consistently on shared edges, so no ray slips between two triangles. Returns (t, barycentrics)
 /// for 0 < t < t_max, with t > 0 proven by a conservative error bound.
 #[inline]
-pub fn intersect_triangle(
-    o: Vec3A,
-    d: Vec3A,
-    t_max: f32,
-    tri: &[Vec3A; 3],
-) -> Option<(f32, [f32; 3])> {
+pub fn intersect_triangle(o: Vec3A, d: Vec3A, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
     let kz = max_dim(d.abs());
     let kx = if kz == 2 { 0 } else { kz + 1 };
     let ky = if kx == 2 { 0 } else { kx + 1 };
@@ -268,8 +234,7 @@ pub fn intersect_triangle(
     let delta_y = gamma(5) * (max_yt + max_zt);
     let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t =
-        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
     if t <= delta_t {
         return None;
     }
@@ -294,16 +259,8 @@ mod tests {
     #[test]
     fn shared_edge_is_hit_exactly_once() {
         // Two triangles sharing the diagonal of the unit square; rays aimed exactly at the diagonal.
-        let a = [
-            Vec3A::new(0.0, 0.0, 0.0),
-            Vec3A::new(1.0, 0.0, 0.0),
-            Vec3A::new(1.0, 1.0, 0.0),
-        ];
-        let b = [
-            Vec3A::new(0.0, 0.0, 0.0),
-            Vec3A::new(1.0, 1.0, 0.0),
-            Vec3A::new(0.0, 1.0, 0.0),
-        ];
+        let a = [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(1.0, 0.0, 0.0), Vec3A::new(1.0, 1.0, 0.0)];
+        let b = [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(1.0, 1.0, 0.0), Vec3A::new(0.0, 1.0, 0.0)];
         for k in 1..100 {
             let s = k as f32 / 100.0;
             let o = Vec3A::new(s, s, 1.0);
@@ -324,19 +281,12 @@ mod tests {
             ];
             let geo = Geometry::build(vec![tri], vec![0]);
             let n = geo.normals[0];
-            let hit = Hit {
-                t: 1.0,
-                prim: 0,
-                b: [0.3, 0.3, 0.4],
-            };
+            let hit = Hit { t: 1.0, prim: 0, b: [0.3, 0.3, 0.4] };
             let (p, err) = geo.hit_point(&hit);
             for dir in [n, -n] {
                 let o = offset_ray_origin(p, err, n, dir);
                 let side = (o - geo.verts[0][0]).as_dvec3().dot(n.as_dvec3());
-                assert!(
-                    side * dir.dot(n) as f64 > 0.0,
-                    "offset origin on the wrong side at scale {scale}"
-                );
+                assert!(side * dir.dot(n) as f64 > 0.0, "offset origin on the wrong side at scale {scale}");
             }
         }
     }

@@ -13,11 +13,7 @@ use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::{self, LightShape, Scene};
 
 #[derive(Parser)]
-#[command(
-    name = "photon",
-    version,
-    about = "Forward Monte Carlo photon tracer: how much light lands where"
-)]
+#[command(name = "photon", version, about = "Forward Monte Carlo photon tracer: how much light lands where")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -66,11 +62,7 @@ fn main() -> ExitCode {
         Err(e) => {
             let _ = e.print();
             // clap's help and version are successes; every other parse failure is bad arguments.
-            return if e.use_stderr() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::SUCCESS
-            };
+            return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
         }
     };
     let result = match cli.command {
@@ -110,18 +102,12 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(
-    scene_path: &Path,
-    out: Option<PathBuf>,
-    opts: &RunOptions,
-    quiet: bool,
-) -> Result<(), Error> {
+fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) -> Result<(), Error> {
     let mut scene = scene::load(scene_path)?;
     let chosen = apply_options(&mut scene, opts)?;
     // The scene and options are sound: only now is anything created on disk.
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
-    std::fs::create_dir_all(&out_dir)
-        .map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
 
     let interrupt = Arc::new(AtomicBool::new(false));
     let flag = interrupt.clone();
@@ -130,7 +116,7 @@ fn run(
 
     let result = simulate(&scene, opts, &chosen, &interrupt)?;
     let flux = output::flux(&scene, &result);
-    let info = output::run_info(&scene, &result);
+    let info = output::run_info(&scene, &result, &flux);
     output::write_json(&out_dir, "flux.json", &flux)?;
     output::write_atomic(&out_dir, "flux.csv", output::flux_csv(&flux).as_bytes())?;
     output::write_json(&out_dir, "run.json", &info)?;
@@ -158,11 +144,7 @@ fn describe(scene: &Scene) -> String {
             format!("{} ({})", m.name, m.material.kind()),
             surf.triangles,
             surf.area_m2,
-            if surf.light.is_some() {
-                "  [light]"
-            } else {
-                ""
-            }
+            if surf.light.is_some() { "  [light]" } else { "" }
         ));
     }
     s.push_str(&format!("lights ({}):\n", scene.lights.len()));
@@ -171,18 +153,11 @@ fn describe(scene: &Scene) -> String {
             LightShape::Area { surface } => {
                 format!("area, {:.6} m²", scene.surfaces[*surface].area_m2)
             }
-            LightShape::Point { position, .. } => format!(
-                "point at [{}, {}, {}] m",
-                position.x, position.y, position.z
-            ),
+            LightShape::Point { position, .. } => {
+                format!("point at [{}, {}, {}] m", position.x, position.y, position.z)
+            }
         };
-        s.push_str(&format!(
-            "  {:<16} {:>12.6} W  {}  {}\n",
-            l.name,
-            l.power_w,
-            l.distribution.describe(),
-            shape
-        ));
+        s.push_str(&format!("  {:<16} {:>12.6} W  {}  {}\n", l.name, l.power_w, l.distribution.describe(), shape));
     }
     s.push_str(&format!("triangles: {}\n", scene.geometry.len()));
     s.push_str(&format!("total power: {:.6} W\n", scene.total_power_w()));
@@ -191,10 +166,7 @@ fn describe(scene: &Scene) -> String {
     s.push_str(&format!("transport: {}\n", scene.effects.transport()));
     s.push_str(&format!("effects: {}\n", scene.effects.names().join(", ")));
     if let Some(c) = &scene.camera {
-        s.push_str(&format!(
-            "camera: {}×{} pixels, fov {}°\n",
-            c.resolution[0], c.resolution[1], c.fov_deg
-        ));
+        s.push_str(&format!("camera: {}×{} pixels, fov {}°\n", c.resolution[0], c.resolution[1], c.fov_deg));
     }
     s
 }

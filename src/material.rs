@@ -41,10 +41,7 @@ pub fn interact(m: &Material, lambda_nm: f64, d: Vec3A, n: Vec3A, s: &mut Sample
     let n_in = if cos_dn < 0.0 { n } else { -n };
     match m {
         Material::Absorber => Interaction::Absorbed,
-        Material::Lambertian {
-            reflectance,
-            transmittance,
-        } => {
+        Material::Lambertian { reflectance, transmittance } => {
             let rho = reflectance.eval(lambda_nm);
             let tau = transmittance.eval(lambda_nm);
             let u = s.uniform();
@@ -63,15 +60,9 @@ pub fn interact(m: &Material, lambda_nm: f64, d: Vec3A, n: Vec3A, s: &mut Sample
                 Interaction::Absorbed
             }
         }
-        Material::Dielectric {
-            ior, outside_ior, ..
-        } => {
+        Material::Dielectric { ior, outside_ior, .. } => {
             let (n_out, n_inside) = (outside_ior.eval(lambda_nm), ior.eval(lambda_nm));
-            let (eta_i, eta_t) = if cos_dn < 0.0 {
-                (n_out, n_inside)
-            } else {
-                (n_inside, n_out)
-            };
+            let (eta_i, eta_t) = if cos_dn < 0.0 { (n_out, n_inside) } else { (n_inside, n_out) };
             let cos_i = (cos_dn.abs() as f64).min(1.0);
             let (r, cos_t) = fresnel_dielectric(cos_i, eta_i, eta_t);
             if s.uniform() < r {

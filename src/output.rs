@@ -20,8 +20,6 @@ pub struct SurfaceRow {
     pub absorbed_w_stderr: f64,
     /// Relative standard error of incident_w (0 when nothing arrived).
     pub rel_error: f64,
-    /// Figure of merit 1/(rel_error² · seconds): how much accuracy a second of this run buys.
-    pub fom: f64,
 }
 
 #[derive(Serialize, Clone, Debug)]
@@ -47,6 +45,9 @@ pub struct RunInfo {
     pub batch_photons: u64,
     pub max_bounces: u32,
     pub mean_scatterings: f64,
+    /// Per surface, the figure of merit 1/(rel_error² · seconds): the accuracy a second buys.
+    /// Here rather than in flux.json, whose numbers must not depend on timing.
+    pub fom: Vec<(String, f64)>,
 }
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
@@ -59,16 +60,7 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
         .map(|(i, s)| {
             let (incident_w, incident_w_stderr) = t.incident[i].estimate(t.photons, w);
             let (absorbed_w, absorbed_w_stderr) = t.absorbed[i].estimate(t.photons, w);
-            let rel_error = if incident_w > 0.0 {
-                incident_w_stderr / incident_w
-            } else {
-                0.0
-            };
-            let fom = if rel_error > 0.0 && r.wall_seconds > 0.0 {
-                1.0 / (rel_error * rel_error * r.wall_seconds)
-            } else {
-                0.0
-            };
+            let rel_error = if incident_w > 0.0 { incident_w_stderr / incident_w } else { 0.0 };
             SurfaceRow {
                 name: s.name.clone(),
                 area_m2: s.area_m2,
@@ -77,20 +69,26 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
                 absorbed_w,
                 absorbed_w_stderr,
                 rel_error,
-                fom,
             }
         })
         .collect();
-    Flux {
-        photons: t.photons,
-        emitted_w: r.emitted_w,
-        surfaces,
-        ledger: t.ledger(r.emitted_w),
-    }
+    Flux { photons: t.photons, emitted_w: r.emitted_w, surfaces, ledger: t.ledger(r.emitted_w) }
 }
 
-pub fn run_info(scene: &Scene, r: &RunResult) -> RunInfo {
+pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
     let photons = r.tallies.photons;
+    let fom = flux
+        .surfaces
+        .iter()
+        .map(|s| {
+            let fom = if s.rel_error > 0.0 && r.wall_seconds > 0.0 {
+                1.0 / (s.rel_error * s.rel_error * r.wall_seconds)
+            } else {
+                0.0
+            };
+            (s.name.clone(), fom)
+        })
+        .collect();
     RunInfo {
         version: env!("CARGO_PKG_VERSION").to_string(),
         scene: scene.path.display().to_string(),
@@ -98,33 +96,19 @@ pub fn run_info(scene: &Scene, r: &RunResult) -> RunInfo {
         photons,
         threads: r.threads,
         wall_seconds: r.wall_seconds,
-        photons_per_second: if r.wall_seconds > 0.0 {
-            photons as f64 / r.wall_seconds
-        } else {
-            0.0
-        },
-        effects: scene
-            .effects
-            .names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
+        photons_per_second: if r.wall_seconds > 0.0 { photons as f64 / r.wall_seconds } else { 0.0 },
+        effects: scene.effects.names().iter().map(|s| s.to_string()).collect(),
         stop_reason: r.stop_reason,
         transport: scene.effects.transport().to_string(),
         batch_photons: BATCH_PHOTONS,
         max_bounces: scene.simulation.max_bounces,
-        mean_scatterings: if photons > 0 {
-            r.tallies.scatterings as f64 / photons as f64
-        } else {
-            0.0
-        },
+        fom,
+        mean_scatterings: if photons > 0 { r.tallies.scatterings as f64 / photons as f64 } else { 0.0 },
     }
 }
 
 pub fn flux_csv(f: &Flux) -> String {
-    let mut s = String::from(
-        "name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error,fom\n",
-    );
+    let mut s = String::from("name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error\n");
     for r in &f.surfaces {
         let name = if r.name.contains([',', '"', '\n']) {
             format!("\"{}\"", r.name.replace('"', "\"\""))
@@ -132,14 +116,8 @@ pub fn flux_csv(f: &Flux) -> String {
             r.name.clone()
         };
         s.push_str(&format!(
-            "{name},{},{},{},{},{},{},{}\n",
-            r.area_m2,
-            r.incident_w,
-            r.incident_w_stderr,
-            r.absorbed_w,
-            r.absorbed_w_stderr,
-            r.rel_error,
-            r.fom
+            "{name},{},{},{},{},{},{}\n",
+            r.area_m2, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error
         ));
     }
     s
@@ -163,21 +141,15 @@ pub fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<PathBuf, Err
 }
 
 pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<PathBuf, Error> {
-    let mut text = serde_json::to_string_pretty(value)
-        .map_err(|e| Error::Other(format!("cannot encode {name}: {e}")))?;
+    let mut text =
+        serde_json::to_string_pretty(value).map_err(|e| Error::Other(format!("cannot encode {name}: {e}")))?;
     text.push('\n');
     write_atomic(dir, name, text.as_bytes())
 }
 
 /// The per-surface table printed at the end of a run.
 pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
-    let width = f
-        .surfaces
-        .iter()
-        .map(|r| r.name.len())
-        .max()
-        .unwrap_or(4)
-        .max(7);
+    let width = f.surfaces.iter().map(|r| r.name.len()).max().unwrap_or(4).max(7);
     let mut s = format!(
         "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}\n",
         "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err"
@@ -185,12 +157,7 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
     for r in &f.surfaces {
         s.push_str(&format!(
             "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8.2e}\n",
-            r.name,
-            r.incident_w,
-            r.incident_w_stderr,
-            r.absorbed_w,
-            r.absorbed_w_stderr,
-            r.rel_error
+            r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error
         ));
     }
     let l = &f.ledger;
@@ -204,12 +171,7 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
     ));
     s.push_str(&format!(
         "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport), stopped by {:?}\n",
-        info.photons,
-        info.wall_seconds,
-        info.photons_per_second,
-        info.threads,
-        info.transport,
-        info.stop_reason
+        info.photons, info.wall_seconds, info.photons_per_second, info.threads, info.transport, info.stop_reason
     ));
     s
 }

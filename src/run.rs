@@ -65,16 +65,12 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     }
     if let Some(e) = opts.rel_error {
         if !(e > 0.0 && e.is_finite()) {
-            return Err(Error::Usage(format!(
-                "--rel-error must be a positive number, found {e}"
-            )));
+            return Err(Error::Usage(format!("--rel-error must be a positive number, found {e}")));
         }
     }
     if let Some(t) = opts.time_s {
         if !(t > 0.0 && t.is_finite()) {
-            return Err(Error::Usage(format!(
-                "--time must be a positive number of seconds, found {t}"
-            )));
+            return Err(Error::Usage(format!("--time must be a positive number of seconds, found {t}")));
         }
     }
     if opts.threads == Some(0) {
@@ -94,9 +90,7 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
         }
     }
     if !opts.tallies.is_empty() && opts.rel_error.is_none() {
-        return Err(Error::Usage(
-            "--tally only makes sense with --rel-error".into(),
-        ));
+        return Err(Error::Usage("--tally only makes sense with --rel-error".into()));
     }
     if chosen.is_empty() {
         chosen = (0..scene.surfaces.len()).collect();
@@ -111,9 +105,7 @@ pub fn simulate(
     rel_error_surfaces: &[usize],
     interrupt: &AtomicBool,
 ) -> Result<RunResult, Error> {
-    let threads = opts
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let threads = opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -124,11 +116,7 @@ pub fn simulate(
 
     // With an accuracy or time target the photon count is only a cap, and only when it was given.
     let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let cap = if open_ended && !scene.simulation.photons_given {
-        u64::MAX
-    } else {
-        scene.simulation.photons
-    };
+    let cap = if open_ended && !scene.simulation.photons_given { u64::MAX } else { scene.simulation.photons };
     let total_batches = cap.div_ceil(BATCH_PHOTONS);
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
 
@@ -140,18 +128,13 @@ pub fn simulate(
     'rounds: while next < total_batches {
         let end = (next + round).min(total_batches);
         let batches: Vec<Tallies> = pool.install(|| {
-            (next..end)
-                .into_par_iter()
-                .map(|b| trace_batch_for(scene, &emitter, seed, b, photons_in(b)))
-                .collect()
+            (next..end).into_par_iter().map(|b| trace_batch_for(scene, &emitter, seed, b, photons_in(b))).collect()
         });
         for (b, t) in (next..end).zip(&batches) {
             tallies.merge(t);
             if let Some(target) = opts.rel_error {
                 if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
-                    && tallies
-                        .worst_rel_error(rel_error_surfaces)
-                        .is_some_and(|e| e <= target)
+                    && tallies.worst_rel_error(rel_error_surfaces).is_some_and(|e| e <= target)
                 {
                     stop = StopReason::RelError;
                     break 'rounds;
@@ -166,10 +149,7 @@ pub fn simulate(
             stop = StopReason::Interrupted;
             break;
         }
-        if opts
-            .time_s
-            .is_some_and(|t| start.elapsed().as_secs_f64() >= t)
-        {
+        if opts.time_s.is_some_and(|t| start.elapsed().as_secs_f64() >= t) {
             stop = StopReason::Time;
             break;
         }
@@ -194,16 +174,12 @@ fn make_progress(enabled: bool, total: Option<u64>) -> Option<indicatif::Progres
     }
     let bar = match total {
         Some(n) => indicatif::ProgressBar::new(n).with_style(
-            indicatif::ProgressStyle::with_template(
-                "{bar:40} {pos}/{len} photons  {per_sec}  eta {eta}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} photons  {per_sec}  eta {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
         ),
         None => indicatif::ProgressBar::new_spinner().with_style(
-            indicatif::ProgressStyle::with_template(
-                "{spinner} {pos} photons  {per_sec}  {elapsed}",
-            )
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+            indicatif::ProgressStyle::with_template("{spinner} {pos} photons  {per_sec}  {elapsed}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
         ),
     };
     Some(bar)

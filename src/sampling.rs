@@ -18,9 +18,7 @@ impl Sampler {
     pub fn for_batch(seed: u64, batch: u64) -> Self {
         let mut mix = SplitMix64::seed_from_u64(seed);
         let key = mix.next_u64() ^ batch.wrapping_mul(0x9E37_79B9_7F4A_7C15);
-        Sampler {
-            rng: Xoshiro256PlusPlus::seed_from_u64(key),
-        }
+        Sampler { rng: Xoshiro256PlusPlus::seed_from_u64(key) }
     }
 
     /// Uniform in [0, 1) with 53 random bits.
@@ -112,9 +110,7 @@ impl Discrete {
     /// Index i with probability weights[i]/Σweights.
     #[inline]
     pub fn sample(&self, u: f64) -> usize {
-        self.cdf
-            .partition_point(|&c| c <= u)
-            .min(self.cdf.len() - 1)
+        self.cdf.partition_point(|&c| c <= u).min(self.cdf.len() - 1)
     }
 }
 
@@ -146,15 +142,11 @@ mod tests {
         let n = Vec3A::new(0.3, -0.5, 0.8).normalize();
         let mut s = Sampler::for_batch(7, 0);
         let count = 200_000;
-        let mean: f64 = (0..count)
-            .map(|_| cosine_hemisphere(n, s.uniform_f32(), s.uniform_f32()).dot(n) as f64)
-            .sum::<f64>()
-            / count as f64;
+        let mean: f64 =
+            (0..count).map(|_| cosine_hemisphere(n, s.uniform_f32(), s.uniform_f32()).dot(n) as f64).sum::<f64>()
+                / count as f64;
         let stderr = (1.0f64 / 18.0 / count as f64).sqrt();
-        assert!(
-            ((mean - 2.0 / 3.0) / stderr).abs() < 4.0,
-            "mean cosine {mean}"
-        );
+        assert!(((mean - 2.0 / 3.0) / stderr).abs() < 4.0, "mean cosine {mean}");
     }
 
     #[test]

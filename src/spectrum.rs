@@ -78,9 +78,7 @@ impl Spectrum {
         let mut xs = vec![a];
         match self {
             Spectrum::Constant(_) => {}
-            Spectrum::Table(points) => {
-                xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b))
-            }
+            Spectrum::Table(points) => xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b)),
             Spectrum::Blackbody { .. } | Spectrum::Cauchy { .. } => {
                 let mut x = a.floor() + 1.0;
                 while x < b {
@@ -96,20 +94,14 @@ impl Spectrum {
     /// ∫ over `range` of the spectrum, in value·nm (trapezoid between breakpoints: exact for tables).
     pub fn integral(&self, range: (f64, f64)) -> f64 {
         let xs = self.breakpoints(range);
-        xs.windows(2)
-            .map(|w| 0.5 * (self.eval(w[0]) + self.eval(w[1])) * (w[1] - w[0]))
-            .sum()
+        xs.windows(2).map(|w| 0.5 * (self.eval(w[0]) + self.eval(w[1])) * (w[1] - w[0])).sum()
     }
 }
 
 fn table_eval(points: &[(f64, f64)], x: f64) -> f64 {
     let i = points.partition_point(|p| p.0 < x);
     if i == 0 {
-        return if points.first().is_some_and(|p| p.0 == x) {
-            points[0].1
-        } else {
-            0.0
-        };
+        return if points.first().is_some_and(|p| p.0 == x) { points[0].1 } else { 0.0 };
     }
     if i == points.len() {
         return 0.0;

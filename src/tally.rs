@@ -30,11 +30,7 @@ impl Moments {
         }
         let nf = n as f64;
         let mean = self.sum / nf;
-        let var = if n > 1 {
-            ((self.sum_sq / nf - mean * mean).max(0.0)) / (nf - 1.0)
-        } else {
-            0.0
-        };
+        let var = if n > 1 { ((self.sum_sq / nf - mean * mean).max(0.0)) / (nf - 1.0) } else { 0.0 };
         (mean * scale, var.sqrt() * scale)
     }
 }
@@ -48,10 +44,7 @@ pub struct HistoryScores {
 
 impl HistoryScores {
     pub fn new(surfaces: usize) -> Self {
-        HistoryScores {
-            value: vec![0.0; surfaces],
-            touched: Vec::with_capacity(64),
-        }
+        HistoryScores { value: vec![0.0; surfaces], touched: Vec::with_capacity(64) }
     }
 
     #[inline]
@@ -160,8 +153,7 @@ pub struct Ledger {
 impl Ledger {
     /// |emitted − (absorbed + escaped + truncated)| / emitted.
     pub fn relative_residual(&self) -> f64 {
-        ((self.emitted_w - (self.absorbed_w + self.escaped_w + self.truncated_w)) / self.emitted_w)
-            .abs()
+        ((self.emitted_w - (self.absorbed_w + self.escaped_w + self.truncated_w)) / self.emitted_w).abs()
     }
 }
 
@@ -178,29 +170,14 @@ mod tests {
         h.flush(&mut m);
         h.add(1, 1.0);
         h.flush(&mut m);
-        assert_eq!(
-            m[0],
-            Moments {
-                sum: 2.0,
-                sum_sq: 4.0
-            }
-        );
-        assert_eq!(
-            m[1],
-            Moments {
-                sum: 1.0,
-                sum_sq: 1.0
-            }
-        );
+        assert_eq!(m[0], Moments { sum: 2.0, sum_sq: 4.0 });
+        assert_eq!(m[1], Moments { sum: 1.0, sum_sq: 1.0 });
     }
 
     #[test]
     fn standard_error_of_bernoulli_scores() {
         // Scores 1 with probability 1/4 over N = 4: mean 1/4, sample variance (1/4 − 1/16)/(N−1).
-        let m = Moments {
-            sum: 1.0,
-            sum_sq: 1.0,
-        };
+        let m = Moments { sum: 1.0, sum_sq: 1.0 };
         let (mean, se) = m.estimate(4, 1.0);
         assert_eq!(mean, 0.25);
         assert!((se - ((0.25f64 - 0.0625) / 3.0).sqrt()).abs() < 1e-15);

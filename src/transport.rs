@@ -46,11 +46,7 @@ pub fn trace_batch<const SPECTRAL: bool>(
             let n = geo.normals[prim];
             // Beer–Lambert: a photon reaching a dielectric from inside crossed its medium over
             // distance t and survived with probability exp(−α t); otherwise the medium absorbed it.
-            if let Material::Dielectric {
-                absorption_per_m: Some(alpha),
-                ..
-            } = material
-            {
+            if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = material {
                 if dir.dot(n) > 0.0 && s.uniform() >= (-alpha.eval(lambda) * hit.t as f64).exp() {
                     absorbed.add(surface, weight);
                     break;
@@ -84,13 +80,7 @@ pub fn trace_batch<const SPECTRAL: bool>(
 }
 
 /// Dispatches once per batch to the kernel specialised for the scene's effects.
-pub fn trace_batch_for(
-    scene: &Scene,
-    emitter: &Emitter,
-    seed: u64,
-    batch: u64,
-    count: u64,
-) -> Tallies {
+pub fn trace_batch_for(scene: &Scene, emitter: &Emitter, seed: u64, batch: u64, count: u64) -> Tallies {
     if scene.effects.spectral {
         trace_batch::<true>(scene, emitter, seed, batch, count)
     } else {

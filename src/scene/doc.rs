@@ -67,28 +67,19 @@ pub type R<T> = Result<T, InputError>;
 
 impl<'s, 'v> Node<'s, 'v> {
     pub fn err(&self, message: impl Into<String>) -> InputError {
-        self.src
-            .error(self.path, Some(self.value.span().start), message)
+        self.src.error(self.path, Some(self.value.span().start), message)
     }
 
     fn wrong_type(&self, expected: &str) -> InputError {
-        self.err(format!(
-            "expected {expected}, found {}",
-            type_name(self.value.get_ref())
-        ))
+        self.err(format!("expected {expected}, found {}", type_name(self.value.get_ref())))
     }
 
     /// Any finite number (integers are accepted where numbers are).
     pub fn f64(&self) -> R<f64> {
         let x = match self.value.get_ref() {
-            DeValue::Float(f) => f
-                .as_str()
-                .replace('_', "")
-                .parse::<f64>()
-                .map_err(|_| self.err("not a number"))?,
+            DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().map_err(|_| self.err("not a number"))?,
             DeValue::Integer(i) => i64::from_str_radix(&i.as_str().replace('_', ""), i.radix())
-                .map_err(|_| self.err("integer out of range"))?
-                as f64,
+                .map_err(|_| self.err("integer out of range"))? as f64,
             _ => return Err(self.wrong_type("a number")),
         };
         if !x.is_finite() {
@@ -124,20 +115,12 @@ impl<'s, 'v> Node<'s, 'v> {
     }
 
     pub fn is_number(&self) -> bool {
-        matches!(
-            self.value.get_ref(),
-            DeValue::Float(_) | DeValue::Integer(_)
-        )
+        matches!(self.value.get_ref(), DeValue::Float(_) | DeValue::Integer(_))
     }
 
     pub fn table(&self) -> R<Table<'s, 'v>> {
         match self.value.get_ref() {
-            DeValue::Table(t) => Ok(Table {
-                src: self.src,
-                path: self.path,
-                table: t,
-                start: self.value.span().start,
-            }),
+            DeValue::Table(t) => Ok(Table { src: self.src, path: self.path, table: t, start: self.value.span().start }),
             _ => Err(self.wrong_type("a table")),
         }
     }
@@ -146,20 +129,12 @@ impl<'s, 'v> Node<'s, 'v> {
     pub fn vec3(&self) -> R<[f64; 3]> {
         let items = self.array()?;
         if items.len() != 3 {
-            return Err(self.err(format!(
-                "expected a point [x, y, z], found {} numbers",
-                items.len()
-            )));
+            return Err(self.err(format!("expected a point [x, y, z], found {} numbers", items.len())));
         }
         let mut out = [0.0; 3];
         for (i, item) in items.iter().enumerate() {
             let p = index_path(self.path, i);
-            out[i] = Node {
-                src: self.src,
-                path: &p,
-                value: item,
-            }
-            .f64()?;
+            out[i] = Node { src: self.src, path: &p, value: item }.f64()?;
         }
         Ok(out)
     }
@@ -170,11 +145,7 @@ impl<'s, 'v> Node<'s, 'v> {
         let mut out = Vec::with_capacity(items.len());
         for (i, item) in items.iter().enumerate() {
             let p = index_path(self.path, i);
-            out.push(f(Node {
-                src: self.src,
-                path: &p,
-                value: item,
-            })?);
+            out.push(f(Node { src: self.src, path: &p, value: item })?);
         }
         Ok(out)
     }
@@ -201,11 +172,7 @@ impl<'s, 'v> Table<'s, 'v> {
                 return Err(self.src.error(
                     &child_path(self.path, key.get_ref()),
                     Some(key.span().start.min(value.span().start)),
-                    format!(
-                        "unknown key `{}`; allowed keys here: {}",
-                        key.get_ref(),
-                        allowed.join(", ")
-                    ),
+                    format!("unknown key `{}`; allowed keys here: {}", key.get_ref(), allowed.join(", ")),
                 ));
             }
         }
@@ -226,12 +193,7 @@ impl<'s, 'v> Table<'s, 'v> {
             None => Ok(None),
             Some(v) => {
                 let p = child_path(self.path, key);
-                f(Node {
-                    src: self.src,
-                    path: &p,
-                    value: v,
-                })
-                .map(Some)
+                f(Node { src: self.src, path: &p, value: v }).map(Some)
             }
         }
     }
@@ -265,11 +227,7 @@ impl<'s, 'v> Table<'s, 'v> {
 
     /// The line of `key`'s value, or of the table when the key is absent.
     pub fn line_of_key(&self, key: &str) -> usize {
-        let byte = self
-            .table
-            .get(key)
-            .map(|v| v.span().start)
-            .unwrap_or(self.start);
+        let byte = self.table.get(key).map(|v| v.span().start).unwrap_or(self.start);
         self.src.line_of(byte)
     }
 }

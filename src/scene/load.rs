@@ -14,14 +14,7 @@ use crate::error::{Error, InputError};
 use crate::geometry::Geometry;
 use crate::spectrum::Spectrum;
 
-const ROOT_KEYS: &[&str] = &[
-    "simulation",
-    "camera",
-    "scene",
-    "materials",
-    "surfaces",
-    "lights",
-];
+const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights"];
 
 /// Loads and checks a scene file.
 pub fn load(path: &Path) -> Result<Scene, Error> {
@@ -34,33 +27,15 @@ pub fn load(path: &Path) -> Result<Scene, Error> {
 pub fn load_str(path: &Path, text: &str) -> Result<Scene, Error> {
     let src = Source::new(path, text);
     if text.trim().is_empty() {
-        return Err(src
-            .error(
-                "",
-                None,
-                "the scene file is empty: it needs at least one light",
-            )
-            .into());
+        return Err(src.error("", None, "the scene file is empty: it needs at least one light").into());
     }
     let root = DeTable::parse(text).map_err(|e| {
         let byte = e.span().map(|s| s.start);
-        src.error(
-            "",
-            byte,
-            format!("TOML syntax error: {}", e.message().trim()),
-        )
+        src.error("", byte, format!("TOML syntax error: {}", e.message().trim()))
     })?;
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let loader = Loader {
-        src: &src,
-        base_dir,
-    };
-    let table = Table {
-        src: &src,
-        path: "",
-        table: root.get_ref(),
-        start: root.span().start,
-    };
+    let loader = Loader { src: &src, base_dir };
+    let table = Table { src: &src, path: "", table: root.get_ref(), start: root.span().start };
     Ok(loader.scene(table, path)?)
 }
 
@@ -85,12 +60,8 @@ impl<'s> Loader<'s> {
         let simulation = self.simulation(root)?;
         let range = simulation.wavelength_range_nm;
 
-        let mut materials = vec![NamedMaterial {
-            name: "absorber".into(),
-            material: Material::Absorber,
-        }];
-        let mut material_index: HashMap<String, usize> =
-            HashMap::from([("absorber".to_string(), 0)]);
+        let mut materials = vec![NamedMaterial { name: "absorber".into(), material: Material::Absorber }];
+        let mut material_index: HashMap<String, usize> = HashMap::from([("absorber".to_string(), 0)]);
         root.with("materials", |n| {
             let t = n.table()?;
             for key in t.keys() {
@@ -100,10 +71,7 @@ impl<'s> Loader<'s> {
                     materials[0].material = m;
                 } else {
                     material_index.insert(key.to_string(), materials.len());
-                    materials.push(NamedMaterial {
-                        name: key.to_string(),
-                        material: m,
-                    });
+                    materials.push(NamedMaterial { name: key.to_string(), material: m });
                 }
             }
             Ok(())
@@ -117,7 +85,9 @@ impl<'s> Loader<'s> {
                     self.src.file,
                     key,
                     Some(node_line),
-                    format!("duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"),
+                    format!(
+                        "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
+                    ),
                 ));
             }
             Ok(())
@@ -129,15 +99,8 @@ impl<'s> Loader<'s> {
                 t.allow(&["name", "material", "shape"])?;
                 let name = self.name(t)?;
                 let material = self.material_ref(t, &material_index)?;
-                let shape =
-                    t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
-                Ok(Entry {
-                    name,
-                    material,
-                    shape,
-                    line: t.line_of_key("name"),
-                    shape_line: t.line_of_key("shape"),
-                })
+                let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
+                Ok(Entry { name, material, shape, line: t.line_of_key("name"), shape_line: t.line_of_key("shape") })
             })
         })? {
             for (i, e) in list.into_iter().enumerate() {
@@ -167,33 +130,56 @@ impl<'s> Loader<'s> {
         root.with("lights", |n| {
             n.each(|item| {
                 let t = item.table()?;
-                t.allow(&["name", "shape", "power_w", "radiance", "spectrum", "distribution", "material", "direction"])?;
+                t.allow(&[
+                    "name",
+                    "shape",
+                    "power_w",
+                    "radiance",
+                    "spectrum",
+                    "distribution",
+                    "material",
+                    "direction",
+                ])?;
                 let name = self.name(t)?;
                 let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
                 let material = if t.has("material") { self.material_ref(t, &material_index)? } else { 0 };
                 let power = match (t.has("power_w"), t.has("radiance")) {
                     (true, true) => return Err(t.err("give either `power_w` or `radiance`, not both")),
-                    (false, false) => return Err(t.err("missing `power_w` (total radiant flux in W) or `radiance` (W m^-2 sr^-1 nm^-1)")),
+                    (false, false) => {
+                        return Err(
+                            t.err("missing `power_w` (total radiant flux in W) or `radiance` (W m^-2 sr^-1 nm^-1)")
+                        )
+                    }
                     (true, false) => {
                         let p = t.req_f64("power_w")?;
                         if p <= 0.0 {
-                            return Err(t.with("power_w", |n| Ok(n.err(format!("power must be positive, found {p}"))))?.unwrap());
+                            return Err(t
+                                .with("power_w", |n| Ok(n.err(format!("power must be positive, found {p}"))))?
+                                .unwrap());
                         }
                         PowerSpec::Watts(p)
                     }
                     (false, true) => {
                         let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
                         if s.integral(range) <= 0.0 {
-                            return Err(t.with("radiance", |n| Ok(n.err("radiance must be positive somewhere in the wavelength range")))?.unwrap());
+                            return Err(t
+                                .with("radiance", |n| {
+                                    Ok(n.err("radiance must be positive somewhere in the wavelength range"))
+                                })?
+                                .unwrap());
                         }
                         PowerSpec::Radiance(s)
                     }
                 };
-                let spectrum = t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
+                let spectrum =
+                    t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
                 if let (PowerSpec::Watts(_), true) = (&power, spectrum.integral(range) <= 0.0) {
-                    return Err(t.with("spectrum", |n| Ok(n.err("the spectrum is zero over the whole wavelength range")))?.unwrap());
+                    return Err(t
+                        .with("spectrum", |n| Ok(n.err("the spectrum is zero over the whole wavelength range")))?
+                        .unwrap());
                 }
-                let distribution = t.with("distribution", |n| self.distribution(n))?.unwrap_or(Distribution::Lambertian);
+                let distribution =
+                    t.with("distribution", |n| self.distribution(n))?.unwrap_or(Distribution::Lambertian);
                 let axis = t.with("direction", |n| {
                     let d = DVec3::from(n.vec3()?);
                     if d.length() == 0.0 {
@@ -203,22 +189,40 @@ impl<'s> Loader<'s> {
                 })?;
                 let is_point = matches!(shape, ShapeSpec::Point { .. });
                 if !is_point && axis.is_some() {
-                    return Err(t.with("direction", |n| Ok(n.err("`direction` is for point lights; an area light emits about its front normal")))?.unwrap());
+                    return Err(t
+                        .with("direction", |n| {
+                            Ok(n.err("`direction` is for point lights; an area light emits about its front normal"))
+                        })?
+                        .unwrap());
                 }
                 if is_point {
                     if matches!(power, PowerSpec::Radiance(_)) {
-                        return Err(t.with("radiance", |n| Ok(n.err("a point light has no area, so it needs `power_w`, not `radiance`")))?.unwrap());
+                        return Err(t
+                            .with("radiance", |n| {
+                                Ok(n.err("a point light has no area, so it needs `power_w`, not `radiance`"))
+                            })?
+                            .unwrap());
                     }
                     if t.has("material") {
-                        return Err(t.with("material", |n| Ok(n.err("a point light is not a surface and takes no material")))?.unwrap());
+                        return Err(t
+                            .with("material", |n| Ok(n.err("a point light is not a surface and takes no material")))?
+                            .unwrap());
                     }
                     if distribution != Distribution::Isotropic && axis.is_none() {
-                        return Err(t.err(format!("a point light with distribution {} needs `direction = [x, y, z]`", distribution.describe())));
+                        return Err(t.err(format!(
+                            "a point light with distribution {} needs `direction = [x, y, z]`",
+                            distribution.describe()
+                        )));
                     }
                 }
                 if let PowerSpec::Radiance(_) = power {
                     if distribution == Distribution::Collimated {
-                        return Err(t.with("radiance", |n| Ok(n.err("a collimated beam has no finite radiance: give `power_w`")))?.unwrap());
+                        return Err(t
+                            .with(
+                                "radiance",
+                                |n| Ok(n.err("a collimated beam has no finite radiance: give `power_w`")),
+                            )?
+                            .unwrap());
                     }
                 }
                 Ok(LightSpec {
@@ -240,11 +244,7 @@ impl<'s> Loader<'s> {
             check_name(&spec.name, &spec.path, spec.line)?;
         }
         if light_specs.is_empty() {
-            return Err(self.src.error(
-                "lights",
-                None,
-                "the scene has no light: add a [[lights]] entry",
-            ));
+            return Err(self.src.error("lights", None, "the scene has no light: add a [[lights]] entry"));
         }
 
         let camera = root.with("camera", |n| self.camera(n.table()?))?;
@@ -254,28 +254,25 @@ impl<'s> Loader<'s> {
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
         // Returns (surface index, area in m²).
-        let mut add_surface = |name: &str,
-                               material: usize,
-                               tri_list: Vec<[DVec3; 3]>,
-                               light: Option<usize>|
-         -> (usize, f64) {
-            let id = surfaces.len() as u32;
-            let mut area = 0.0;
-            for t in &tri_list {
-                let m = t.map(|v| v * unit_m);
-                area += 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length();
-                tris.push(m.map(|v| v.as_vec3a()));
-                tri_surface.push(id);
-            }
-            surfaces.push(Surface {
-                name: name.to_string(),
-                material,
-                area_m2: area,
-                triangles: tri_list.len(),
-                light,
-            });
-            (id as usize, area)
-        };
+        let mut add_surface =
+            |name: &str, material: usize, tri_list: Vec<[DVec3; 3]>, light: Option<usize>| -> (usize, f64) {
+                let id = surfaces.len() as u32;
+                let mut area = 0.0;
+                for t in &tri_list {
+                    let m = t.map(|v| v * unit_m);
+                    area += 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length();
+                    tris.push(m.map(|v| v.as_vec3a()));
+                    tri_surface.push(id);
+                }
+                surfaces.push(Surface {
+                    name: name.to_string(),
+                    material,
+                    area_m2: area,
+                    triangles: tri_list.len(),
+                    light,
+                });
+                (id as usize, area)
+            };
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
             let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line)?;
@@ -285,15 +282,9 @@ impl<'s> Loader<'s> {
         for (i, spec) in light_specs.into_iter().enumerate() {
             let key = child_path(&spec.path, "shape");
             let (shape, area_m2) = match &spec.shape {
-                ShapeSpec::Point {
-                    position,
-                    transform,
-                } => {
+                ShapeSpec::Point { position, transform } => {
                     let p = transform.apply_point(DVec3::from(*position)) * unit_m;
-                    let axis = spec
-                        .axis
-                        .map(|a| transform.apply_dir(a))
-                        .unwrap_or(DVec3::Z);
+                    let axis = spec.axis.map(|a| transform.apply_dir(a)).unwrap_or(DVec3::Z);
                     (LightShape::Point { position: p, axis }, 0.0)
                 }
                 other => {
@@ -316,13 +307,7 @@ impl<'s> Loader<'s> {
                     (area_m2 * projected_sr * radiance.integral(range), radiance)
                 }
             };
-            lights.push(Light {
-                name: spec.name,
-                shape,
-                power_w,
-                spectrum,
-                distribution: spec.distribution,
-            });
+            lights.push(Light { name: spec.name, shape, power_w, spectrum, distribution: spec.distribution });
         }
 
         let mut used = vec![false; materials.len()];
@@ -335,16 +320,7 @@ impl<'s> Loader<'s> {
             simplify_material(&mut m.material, range);
         }
         let geometry = Geometry::build(tris, tri_surface);
-        Ok(Scene {
-            path: path.to_path_buf(),
-            simulation,
-            materials,
-            surfaces,
-            lights,
-            camera,
-            geometry,
-            effects,
-        })
+        Ok(Scene { path: path.to_path_buf(), simulation, materials, surfaces, lights, camera, geometry, effects })
     }
 
     fn unit(&self, root: Table<'s, '_>) -> R<f64> {
@@ -355,9 +331,7 @@ impl<'s> Loader<'s> {
                 "m" => Ok(1.0),
                 "cm" => Ok(0.01),
                 "mm" => Ok(0.001),
-                other => Err(u.err(format!(
-                    "unknown unit \"{other}\"; use \"m\", \"cm\" or \"mm\""
-                ))),
+                other => Err(u.err(format!("unknown unit \"{other}\"; use \"m\", \"cm\" or \"mm\""))),
             })
         })?;
         Ok(unit.flatten().unwrap_or(1.0))
@@ -376,9 +350,7 @@ impl<'s> Loader<'s> {
             t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm"])?;
             if let Some(p) = t.with("photons", |n| n.u64())? {
                 if p == 0 {
-                    return Err(t
-                        .with("photons", |n| Ok(n.err("photons must be at least 1")))?
-                        .unwrap());
+                    return Err(t.with("photons", |n| Ok(n.err("photons must be at least 1")))?.unwrap());
                 }
                 sim.photons = p;
                 sim.photons_given = true;
@@ -406,9 +378,7 @@ impl<'s> Loader<'s> {
     fn name(&self, t: Table<'s, '_>) -> R<String> {
         let name = t.req_str("name")?;
         if name.trim().is_empty() {
-            return Err(t
-                .with("name", |n| Ok(n.err("name must not be empty")))?
-                .unwrap());
+            return Err(t.with("name", |n| Ok(n.err("name must not be empty")))?.unwrap());
         }
         Ok(name)
     }
@@ -419,10 +389,7 @@ impl<'s> Loader<'s> {
             index.get(name).copied().ok_or_else(|| {
                 let mut known: Vec<&str> = index.keys().map(String::as_str).collect();
                 known.sort();
-                n.err(format!(
-                    "no material named \"{name}\"; defined materials: {}",
-                    known.join(", ")
-                ))
+                n.err(format!("no material named \"{name}\"; defined materials: {}", known.join(", ")))
             })
         })
     }
@@ -435,7 +402,9 @@ impl<'s> Loader<'s> {
                 let s = self.spectrum(n, SpectrumUse::Fraction)?;
                 let (lo, hi) = s.min_max_over(range);
                 if lo < 0.0 || hi > 1.0 {
-                    return Err(n.err(format!("{key} must lie in [0, 1] at every wavelength; found values from {lo} to {hi}")));
+                    return Err(
+                        n.err(format!("{key} must lie in [0, 1] at every wavelength; found values from {lo} to {hi}"))
+                    );
                 }
                 Ok(s)
             })?;
@@ -485,10 +454,13 @@ impl<'s> Loader<'s> {
                 let absorption_per_m = t.with("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
                 Ok(Material::Dielectric { ior, outside_ior, absorption_per_m })
             }
-            other => Err(t.with("type", |n| {
-                Ok(n.err(format!("unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric")))
-            })?
-            .unwrap()),
+            other => Err(t
+                .with("type", |n| {
+                    Ok(n.err(format!(
+                        "unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric"
+                    )))
+                })?
+                .unwrap()),
         }
     }
 
@@ -523,28 +495,18 @@ impl<'s> Loader<'s> {
         let forward = look_at - position;
         if forward.length() == 0.0 {
             return Err(t
-                .with("look_at", |n| {
-                    Ok(n.err(
-                        "look_at equals position: the camera has a zero-length view direction",
-                    ))
-                })?
+                .with("look_at", |n| Ok(n.err("look_at equals position: the camera has a zero-length view direction")))?
                 .unwrap());
         }
         if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-9 {
             return Err(t
-                .with("up", |n| {
-                    Ok(n.err("up must be non-zero and not parallel to the view direction"))
-                })?
-                .unwrap_or_else(|| {
-                    t.err("the default up [0, 1, 0] is parallel to the view direction: give `up`")
-                }));
+                .with("up", |n| Ok(n.err("up must be non-zero and not parallel to the view direction")))?
+                .unwrap_or_else(|| t.err("the default up [0, 1, 0] is parallel to the view direction: give `up`")));
         }
         let fov_deg = t.req_f64("fov_deg")?;
         if !(fov_deg > 0.0 && fov_deg < 180.0) {
             return Err(t
-                .with("fov_deg", |n| {
-                    Ok(n.err(format!("fov_deg must be in (0, 180), found {fov_deg}")))
-                })?
+                .with("fov_deg", |n| Ok(n.err(format!("fov_deg must be in (0, 180), found {fov_deg}"))))?
                 .unwrap());
         }
         let resolution = t
@@ -556,13 +518,7 @@ impl<'s> Loader<'s> {
                 Ok([r[0] as u32, r[1] as u32])
             })?
             .unwrap_or([512, 512]);
-        Ok(Camera {
-            position,
-            look_at,
-            up,
-            fov_deg,
-            resolution,
-        })
+        Ok(Camera { position, look_at, up, fov_deg, resolution })
     }
 
     /// A spectrum: a number, `{ blackbody_k }`, `{ file }`, `{ table }`, or (ior only) `{ cauchy }`.
@@ -586,19 +542,14 @@ impl<'s> Loader<'s> {
         };
         t.allow(allowed)?;
         if keys.len() != 1 {
-            return Err(t.err(format!(
-                "a spectrum table takes exactly one of: {}",
-                allowed.join(", ")
-            )));
+            return Err(t.err(format!("a spectrum table takes exactly one of: {}", allowed.join(", "))));
         }
         match keys[0] {
             "blackbody_k" => {
                 let k = t.req_f64("blackbody_k")?;
                 if k <= 0.0 {
                     return Err(t
-                        .with("blackbody_k", |n| {
-                            Ok(n.err(format!("temperature must be positive, found {k}")))
-                        })?
+                        .with("blackbody_k", |n| Ok(n.err(format!("temperature must be positive, found {k}"))))?
                         .unwrap());
                 }
                 Ok(Spectrum::Blackbody { kelvin: k })
@@ -608,10 +559,7 @@ impl<'s> Loader<'s> {
                 if c.len() != 2 {
                     return Err(n.err("expected cauchy = [A, B_um2]"));
                 }
-                Ok(Spectrum::Cauchy {
-                    a: c[0],
-                    b_um2: c[1],
-                })
+                Ok(Spectrum::Cauchy { a: c[0], b_um2: c[1] })
             }),
             "table" => t.require("table", |n| {
                 let points = n.each(|row| {
@@ -624,12 +572,7 @@ impl<'s> Loader<'s> {
                 check_table(&points).map_err(|(i, m)| {
                     let p = index_path(n.path, i);
                     let item = &n.array().unwrap()[i];
-                    Node {
-                        src: n.src,
-                        path: &p,
-                        value: item,
-                    }
-                    .err(m)
+                    Node { src: n.src, path: &p, value: item }.err(m)
                 })?;
                 Ok(Spectrum::Table(points))
             }),
@@ -663,23 +606,14 @@ enum SpectrumUse {
 /// Wavelengths strictly increasing and positive; values non-negative. Err((row, message)).
 fn check_table(points: &[(f64, f64)]) -> Result<(), (usize, String)> {
     if points.is_empty() {
-        return Err((
-            0,
-            "a spectrum table needs at least one [wavelength_nm, value] row".into(),
-        ));
+        return Err((0, "a spectrum table needs at least one [wavelength_nm, value] row".into()));
     }
     for (i, p) in points.iter().enumerate() {
         if p.0 <= 0.0 {
             return Err((i, format!("wavelength must be positive, found {}", p.0)));
         }
         if p.1 < 0.0 {
-            return Err((
-                i,
-                format!(
-                    "spectrum values must not be negative, found {} at {} nm",
-                    p.1, p.0
-                ),
-            ));
+            return Err((i, format!("spectrum values must not be negative, found {} at {} nm", p.1, p.0)));
         }
         if i > 0 && p.0 <= points[i - 1].0 {
             return Err((
@@ -708,11 +642,7 @@ pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
         }
         let cols: Vec<&str> = line.split(',').map(str::trim).collect();
         let parse = |s: &str| s.parse::<f64>().ok().filter(|v| v.is_finite());
-        match (
-            cols.len(),
-            cols.first().and_then(|s| parse(s)),
-            cols.get(1).and_then(|s| parse(s)),
-        ) {
+        match (cols.len(), cols.first().and_then(|s| parse(s)), cols.get(1).and_then(|s| parse(s))) {
             (2, Some(w), Some(v)) => {
                 points.push((w, v));
                 lines_of_rows.push(i + 1);
@@ -722,24 +652,16 @@ pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
                     path,
                     "",
                     Some(i + 1),
-                    format!(
-                        "expected `wavelength_nm,value` (two finite numbers), found \"{line}\""
-                    ),
+                    format!("expected `wavelength_nm,value` (two finite numbers), found \"{line}\""),
                 ))
             }
         }
     }
     if text.lines().next().is_none() {
-        return Err(InputError::new(
-            path,
-            "",
-            None,
-            "the spectrum file is empty",
-        ));
+        return Err(InputError::new(path, "", None, "the spectrum file is empty"));
     }
-    check_table(&points).map_err(|(row, m)| {
-        InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m)
-    })?;
+    check_table(&points)
+        .map_err(|(row, m)| InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m))?;
     Ok(Spectrum::Table(points))
 }
 
@@ -752,19 +674,12 @@ fn simplify(s: &mut Spectrum, range: (f64, f64)) {
 fn simplify_material(m: &mut Material, range: (f64, f64)) {
     match m {
         Material::Absorber => {}
-        Material::Lambertian {
-            reflectance,
-            transmittance,
-        } => {
+        Material::Lambertian { reflectance, transmittance } => {
             simplify(reflectance, range);
             simplify(transmittance, range);
         }
         Material::Mirror { reflectance } => simplify(reflectance, range),
-        Material::Dielectric {
-            ior,
-            outside_ior,
-            absorption_per_m,
-        } => {
+        Material::Dielectric { ior, outside_ior, absorption_per_m } => {
             simplify(ior, range);
             simplify(outside_ior, range);
             if let Some(a) = absorption_per_m {

@@ -174,10 +174,7 @@ pub struct Scene {
 impl Scene {
     /// The file name without extension: the default output folder's name.
     pub fn stem(&self) -> String {
-        self.path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "scene".into())
+        self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into())
     }
 
     pub fn total_power_w(&self) -> f64 {
@@ -191,25 +188,14 @@ impl Scene {
 
 /// Which effects the scene's materials and camera call for. A spectrum constant over the
 /// wavelength range counts as grey.
-pub fn effects_of(
-    materials: &[NamedMaterial],
-    used: &[bool],
-    range: (f64, f64),
-    camera: bool,
-) -> Effects {
-    let mut fx = Effects {
-        camera,
-        ..Effects::default()
-    };
+pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64), camera: bool) -> Effects {
+    let mut fx = Effects { camera, ..Effects::default() };
     let varies = |s: &Spectrum| s.constant_over(range).is_none();
     let positive = |s: &Spectrum| s.min_max_over(range).1 > 0.0;
     for (m, _) in materials.iter().zip(used).filter(|(_, u)| **u) {
         match &m.material {
             Material::Absorber => {}
-            Material::Lambertian {
-                reflectance,
-                transmittance,
-            } => {
+            Material::Lambertian { reflectance, transmittance } => {
                 fx.diffuse_reflection |= positive(reflectance);
                 fx.diffuse_transmission |= positive(transmittance);
                 fx.spectral |= varies(reflectance) || varies(transmittance);
@@ -218,11 +204,7 @@ pub fn effects_of(
                 fx.specular_reflection |= positive(reflectance);
                 fx.spectral |= varies(reflectance);
             }
-            Material::Dielectric {
-                ior,
-                outside_ior,
-                absorption_per_m,
-            } => {
+            Material::Dielectric { ior, outside_ior, absorption_per_m } => {
                 fx.specular_reflection = true;
                 fx.refraction = true;
                 let dispersive = varies(ior) || varies(outside_ior);

@@ -20,12 +20,12 @@ pub fn read_obj(path: &Path) -> Result<Vec<[DVec3; 3]>, InputError> {
         let mut words = line.split_whitespace();
         match words.next() {
             Some("v") => {
-                let xyz: Vec<f64> = words
-                    .take(3)
-                    .map(|w| w.parse::<f64>().unwrap_or(f64::NAN))
-                    .collect();
+                let xyz: Vec<f64> = words.take(3).map(|w| w.parse::<f64>().unwrap_or(f64::NAN)).collect();
                 if xyz.len() != 3 || xyz.iter().any(|x| !x.is_finite()) {
-                    return Err(err(line_no, format!("malformed vertex: expected `v x y z` with finite numbers, found \"{line}\"")));
+                    return Err(err(
+                        line_no,
+                        format!("malformed vertex: expected `v x y z` with finite numbers, found \"{line}\""),
+                    ));
                 }
                 verts.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
             }
@@ -33,27 +33,19 @@ pub fn read_obj(path: &Path) -> Result<Vec<[DVec3; 3]>, InputError> {
                 let mut idx = Vec::new();
                 for w in words {
                     let first = w.split('/').next().unwrap_or("");
-                    let k: i64 = first
-                        .parse()
-                        .map_err(|_| err(line_no, format!("malformed face index \"{w}\"")))?;
+                    let k: i64 = first.parse().map_err(|_| err(line_no, format!("malformed face index \"{w}\"")))?;
                     // OBJ indices are 1-based; negative ones count back from the last vertex.
                     let resolved = if k > 0 { k - 1 } else { verts.len() as i64 + k };
                     if k == 0 || resolved < 0 || resolved >= verts.len() as i64 {
                         return Err(err(
                             line_no,
-                            format!(
-                                "face index {k} refers to no vertex ({} defined so far)",
-                                verts.len()
-                            ),
+                            format!("face index {k} refers to no vertex ({} defined so far)", verts.len()),
                         ));
                     }
                     idx.push(resolved as usize);
                 }
                 if idx.len() < 3 {
-                    return Err(err(
-                        line_no,
-                        format!("a face needs at least 3 vertices, found {}", idx.len()),
-                    ));
+                    return Err(err(line_no, format!("a face needs at least 3 vertices, found {}", idx.len())));
                 }
                 for j in 1..idx.len() - 1 {
                     let t = [verts[idx[0]], verts[idx[j]], verts[idx[j + 1]]];
@@ -67,12 +59,7 @@ pub fn read_obj(path: &Path) -> Result<Vec<[DVec3; 3]>, InputError> {
         }
     }
     if tris.is_empty() {
-        return Err(InputError::new(
-            path,
-            "",
-            None,
-            "the mesh has no faces with non-zero area",
-        ));
+        return Err(InputError::new(path, "", None, "the mesh has no faces with non-zero area"));
     }
     Ok(tris)
 }

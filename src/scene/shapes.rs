@@ -19,10 +19,7 @@ pub struct Transform {
 
 impl Default for Transform {
     fn default() -> Self {
-        Transform {
-            linear: DMat3::IDENTITY,
-            translate: DVec3::ZERO,
-        }
+        Transform { linear: DMat3::IDENTITY, translate: DVec3::ZERO }
     }
 }
 
@@ -43,37 +40,12 @@ impl Transform {
 
 #[derive(Clone, Debug)]
 pub enum ShapeSpec {
-    Quad {
-        corners: [[f64; 3]; 4],
-        transform: Transform,
-    },
-    Disk {
-        center: [f64; 3],
-        normal: [f64; 3],
-        radius: f64,
-        segments: u32,
-        transform: Transform,
-    },
-    Sphere {
-        center: [f64; 3],
-        radius: f64,
-        subdivisions: u32,
-        transform: Transform,
-    },
-    Box {
-        min: [f64; 3],
-        max: [f64; 3],
-        transform: Transform,
-    },
-    Mesh {
-        file: PathBuf,
-        key_line: usize,
-        transform: Transform,
-    },
-    Point {
-        position: [f64; 3],
-        transform: Transform,
-    },
+    Quad { corners: [[f64; 3]; 4], transform: Transform },
+    Disk { center: [f64; 3], normal: [f64; 3], radius: f64, segments: u32, transform: Transform },
+    Sphere { center: [f64; 3], radius: f64, subdivisions: u32, transform: Transform },
+    Box { min: [f64; 3], max: [f64; 3], transform: Transform },
+    Mesh { file: PathBuf, key_line: usize, transform: Transform },
+    Point { position: [f64; 3], transform: Transform },
 }
 
 pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
@@ -104,20 +76,12 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
             t.allow(&["type", "corners", "transform"])?;
             let corners = t.require("corners", |n| {
                 let c = n.each(|p| p.vec3())?;
-                <[[f64; 3]; 4]>::try_from(c)
-                    .map_err(|c| n.err(format!("a quad needs 4 corners, found {}", c.len())))
+                <[[f64; 3]; 4]>::try_from(c).map_err(|c| n.err(format!("a quad needs 4 corners, found {}", c.len())))
             })?;
             Ok(ShapeSpec::Quad { corners, transform })
         }
         "disk" => {
-            t.allow(&[
-                "type",
-                "center",
-                "normal",
-                "radius",
-                "segments",
-                "transform",
-            ])?;
+            t.allow(&["type", "center", "normal", "radius", "segments", "transform"])?;
             let center = t.req_vec3("center")?;
             let normal = t.require("normal", |n| {
                 let v = n.vec3()?;
@@ -128,65 +92,35 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
             })?;
             let radius = positive("radius")?;
             let segments = count("segments", 256, 3, 1 << 20)? as u32;
-            Ok(ShapeSpec::Disk {
-                center,
-                normal,
-                radius,
-                segments,
-                transform,
-            })
+            Ok(ShapeSpec::Disk { center, normal, radius, segments, transform })
         }
         "sphere" => {
             t.allow(&["type", "center", "radius", "subdivisions", "transform"])?;
             let center = t.req_vec3("center")?;
             let radius = positive("radius")?;
             let subdivisions = count("subdivisions", 5, 0, 9)? as u32;
-            Ok(ShapeSpec::Sphere {
-                center,
-                radius,
-                subdivisions,
-                transform,
-            })
+            Ok(ShapeSpec::Sphere { center, radius, subdivisions, transform })
         }
         "box" => {
             t.allow(&["type", "min", "max", "transform"])?;
             let min = t.req_vec3("min")?;
             let max = t.req_vec3("max")?;
             if (0..3).any(|i| max[i] <= min[i]) {
-                return Err(t
-                    .with("max", |n| {
-                        Ok(n.err("every coordinate of max must exceed min's"))
-                    })?
-                    .unwrap());
+                return Err(t.with("max", |n| Ok(n.err("every coordinate of max must exceed min's")))?.unwrap());
             }
-            Ok(ShapeSpec::Box {
-                min,
-                max,
-                transform,
-            })
+            Ok(ShapeSpec::Box { min, max, transform })
         }
         "mesh" => {
             t.allow(&["type", "file", "transform"])?;
             let file = t.req_str("file")?;
-            Ok(ShapeSpec::Mesh {
-                file: base_dir.join(file),
-                key_line: t.line_of_key("file"),
-                transform,
-            })
+            Ok(ShapeSpec::Mesh { file: base_dir.join(file), key_line: t.line_of_key("file"), transform })
         }
         "point" => {
             if !is_light {
-                return Err(t
-                    .with("type", |n| {
-                        Ok(n.err("a point has no area: `point` is for lights only"))
-                    })?
-                    .unwrap());
+                return Err(t.with("type", |n| Ok(n.err("a point has no area: `point` is for lights only")))?.unwrap());
             }
             t.allow(&["type", "position", "transform"])?;
-            Ok(ShapeSpec::Point {
-                position: t.req_vec3("position")?,
-                transform,
-            })
+            Ok(ShapeSpec::Point { position: t.req_vec3("position")?, transform })
         }
         other => Err(t
             .with("type", |n| {
@@ -206,11 +140,7 @@ fn parse_transform(n: Node) -> R<Transform> {
     let rot = DVec3::from(t.vec3("rotate_deg")?.unwrap_or([0.0; 3])) * (PI / 180.0);
     let scale = t
         .with("scale", |n| {
-            let s = if n.is_number() {
-                DVec3::splat(n.f64()?)
-            } else {
-                DVec3::from(n.vec3()?)
-            };
+            let s = if n.is_number() { DVec3::splat(n.f64()?) } else { DVec3::from(n.vec3()?) };
             if s.x == 0.0 || s.y == 0.0 || s.z == 0.0 {
                 return Err(n.err("scale must not be zero along any axis"));
             }
@@ -229,22 +159,13 @@ fn twice_area(t: &[DVec3; 3]) -> f64 {
 }
 
 /// Triangles of a shape (not a point), transformed, in scene units.
-pub fn triangulate(
-    shape: &ShapeSpec,
-    src: &Source,
-    key: &str,
-    line: usize,
-) -> Result<Vec<[DVec3; 3]>, InputError> {
+pub fn triangulate(shape: &ShapeSpec, src: &Source, key: &str, line: usize) -> Result<Vec<[DVec3; 3]>, InputError> {
     let (raw, transform): (Vec<[DVec3; 3]>, &Transform) = match shape {
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
             let tris = vec![[a, b, c], [a, c, d]];
             let total = twice_area(&tris[0]) + twice_area(&tris[1]);
-            let scale = [a, b, c, d]
-                .iter()
-                .map(|p| p.abs().max_element())
-                .fold(0.0, f64::max)
-                .max(1e-300);
+            let scale = [a, b, c, d].iter().map(|p| p.abs().max_element()).fold(0.0, f64::max).max(1e-300);
             if total <= 1e-12 * scale * scale {
                 return Err(InputError::new(
                     src.file,
@@ -253,18 +174,9 @@ pub fn triangulate(
                     "degenerate quad: its corners enclose zero area",
                 ));
             }
-            (
-                tris.into_iter().filter(|t| twice_area(t) > 0.0).collect(),
-                transform,
-            )
+            (tris.into_iter().filter(|t| twice_area(t) > 0.0).collect(), transform)
         }
-        ShapeSpec::Disk {
-            center,
-            normal,
-            radius,
-            segments,
-            transform,
-        } => {
+        ShapeSpec::Disk { center, normal, radius, segments, transform } => {
             let c = DVec3::from(*center);
             let n = DVec3::from(*normal).normalize();
             let (u, v) = n.any_orthonormal_pair();
@@ -275,43 +187,18 @@ pub fn triangulate(
                 })
                 .collect();
             // (u, v, n) is right-handed, so (c, ring[i], ring[i+1]) has normal +n.
-            let tris = (0..ring.len())
-                .map(|i| [c, ring[i], ring[(i + 1) % ring.len()]])
-                .collect();
+            let tris = (0..ring.len()).map(|i| [c, ring[i], ring[(i + 1) % ring.len()]]).collect();
             (tris, transform)
         }
-        ShapeSpec::Sphere {
-            center,
-            radius,
-            subdivisions,
-            transform,
-        } => {
+        ShapeSpec::Sphere { center, radius, subdivisions, transform } => {
             let c = DVec3::from(*center);
-            let tris = icosphere(*subdivisions)
-                .into_iter()
-                .map(|t| t.map(|p| c + *radius * p))
-                .collect();
+            let tris = icosphere(*subdivisions).into_iter().map(|t| t.map(|p| c + *radius * p)).collect();
             (tris, transform)
         }
-        ShapeSpec::Box {
-            min,
-            max,
-            transform,
-        } => (
-            box_triangles(DVec3::from(*min), DVec3::from(*max)),
-            transform,
-        ),
-        ShapeSpec::Mesh {
-            file,
-            key_line,
-            transform,
-        } => {
+        ShapeSpec::Box { min, max, transform } => (box_triangles(DVec3::from(*min), DVec3::from(*max)), transform),
+        ShapeSpec::Mesh { file, key_line, transform } => {
             let tris = obj::read_obj(file).map_err(|mut e| {
-                e.message = format!(
-                    "{} (mesh named by `{key}` at {}:{key_line})",
-                    e.message,
-                    src.file.display()
-                );
+                e.message = format!("{} (mesh named by `{key}` at {}:{key_line})", e.message, src.file.display());
                 e
             })?;
             (tris, transform)
@@ -335,55 +222,18 @@ pub fn triangulate(
 /// Axis-aligned box, 12 triangles, normals outward.
 fn box_triangles(lo: DVec3, hi: DVec3) -> Vec<[DVec3; 3]> {
     let p = |x: bool, y: bool, z: bool| {
-        DVec3::new(
-            if x { hi.x } else { lo.x },
-            if y { hi.y } else { lo.y },
-            if z { hi.z } else { lo.z },
-        )
+        DVec3::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
     };
     // Each face as a counter-clockwise quad seen from outside.
     let faces = [
-        [
-            p(false, false, false),
-            p(false, false, true),
-            p(false, true, true),
-            p(false, true, false),
-        ], // -x
-        [
-            p(true, false, false),
-            p(true, true, false),
-            p(true, true, true),
-            p(true, false, true),
-        ], // +x
-        [
-            p(false, false, false),
-            p(true, false, false),
-            p(true, false, true),
-            p(false, false, true),
-        ], // -y
-        [
-            p(false, true, false),
-            p(false, true, true),
-            p(true, true, true),
-            p(true, true, false),
-        ], // +y
-        [
-            p(false, false, false),
-            p(false, true, false),
-            p(true, true, false),
-            p(true, false, false),
-        ], // -z
-        [
-            p(false, false, true),
-            p(true, false, true),
-            p(true, true, true),
-            p(false, true, true),
-        ], // +z
+        [p(false, false, false), p(false, false, true), p(false, true, true), p(false, true, false)], // -x
+        [p(true, false, false), p(true, true, false), p(true, true, true), p(true, false, true)],     // +x
+        [p(false, false, false), p(true, false, false), p(true, false, true), p(false, false, true)], // -y
+        [p(false, true, false), p(false, true, true), p(true, true, true), p(true, true, false)],     // +y
+        [p(false, false, false), p(false, true, false), p(true, true, false), p(true, false, false)], // -z
+        [p(false, false, true), p(true, false, true), p(true, true, true), p(false, true, true)],     // +z
     ];
-    faces
-        .iter()
-        .flat_map(|[a, b, c, d]| [[*a, *b, *c], [*a, *c, *d]])
-        .collect()
+    faces.iter().flat_map(|[a, b, c, d]| [[*a, *b, *c], [*a, *c, *d]]).collect()
 }
 
 /// Unit icosphere: the icosahedron with each triangle split in four `level` times, vertices

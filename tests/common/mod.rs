@@ -1,0 +1,33 @@
+//! Shared helpers for the integration tests: run a scene given as TOML text through the library.
+#![allow(dead_code)]
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use photon::output::{self, Flux, SurfaceRow};
+use photon::run::{apply_options, simulate, RunOptions};
+use photon::scene::{load_str, Scene};
+
+pub fn scene(toml: &str) -> Scene {
+    load_str(Path::new("tests/inline.toml"), toml).unwrap_or_else(|e| panic!("scene should load: {e}"))
+}
+
+/// Runs `toml` with `photons` photons and `seed` on 2 threads; returns the flux table.
+pub fn run(toml: &str, photons: u64, seed: u64) -> Flux {
+    let mut s = scene(toml);
+    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let result = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
+    output::flux(&s, &result)
+}
+
+pub fn surface<'a>(f: &'a Flux, name: &str) -> &'a SurfaceRow {
+    f.surfaces.iter().find(|s| s.name == name).unwrap_or_else(|| panic!("no surface {name}"))
+}
+
+/// z = (measured − expected)/stderr; panics with context when |z| > bound.
+pub fn assert_z(what: &str, measured: f64, expected: f64, stderr: f64, bound: f64) {
+    assert!(stderr > 0.0, "{what}: zero standard error, the test cannot judge");
+    let z = (measured - expected) / stderr;
+    assert!(z.abs() <= bound, "{what}: measured {measured}, expected {expected}, stderr {stderr}, z = {z:.2}");
+}

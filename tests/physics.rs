@@ -1,0 +1,167 @@
+//! Closed-form checks of the transport: each compares a tally with an exact value using a
+//! z-score bound of 4 at a fixed seed. Under a correct simulator |z| > 4 has probability 6e-5,
+//! so a failure means a bias, not bad luck; the photon counts make a 1–2 % bias fail.
+
+mod common;
+use common::{assert_z, run, surface};
+
+use std::f64::consts::PI;
+
+#[test]
+fn closed_absorbing_box_absorbs_exactly_the_emitted_power() {
+    let f = run(
+        r#"
+        [[surfaces]]
+        name = "box"
+        material = "absorber"
+        shape = { type = "box", min = [-1, -2, -3], max = [1, 2, 3] }
+        [[lights]]
+        name = "bulb"
+        shape = { type = "point", position = [0.3, 0.2, -0.1] }
+        power_w = 7
+        distribution = "isotropic"
+        "#,
+        100_000,
+        1,
+    );
+    // Every photon must end in the box: nothing escapes through edges or vertices.
+    assert_eq!(f.ledger.escaped_w, 0.0);
+    assert_eq!(f.ledger.truncated_w, 0.0);
+    let b = surface(&f, "box");
+    assert!((b.absorbed_w - 7.0).abs() <= 1e-12 * 7.0, "absorbed {}", b.absorbed_w);
+    assert!((b.incident_w - 7.0).abs() <= 1e-12 * 7.0, "incident {}", b.incident_w);
+}
+
+fn furnace(rho: f64) -> String {
+    format!(
+        r#"
+        [materials.wall]
+        type = "lambertian"
+        reflectance = {rho}
+        [[surfaces]]
+        name = "sphere"
+        material = "wall"
+        shape = {{ type = "sphere", center = [0, 0, 0], radius = 2, subdivisions = 4 }}
+        [[lights]]
+        name = "bulb"
+        shape = {{ type = "point", position = [0.5, -0.3, 0.2] }}
+        power_w = 3
+        distribution = "isotropic"
+        "#
+    )
+}
+
+#[test]
+fn furnace_incident_is_power_over_one_minus_albedo() {
+    // In a closed enclosure each photon arrives K times, K geometric with mean 1/(1−ρ), whatever
+    // the shape: incident = P/(1−ρ). Every photon ends absorbed by the sphere: absorbed = P.
+    for (rho, photons) in [(0.5, 100_000), (0.9, 60_000)] {
+        let f = run(&furnace(rho), photons, 3);
+        let s = surface(&f, "sphere");
+        assert_z(&format!("furnace rho={rho} incident"), s.incident_w, 3.0 / (1.0 - rho), s.incident_w_stderr, 4.0);
+        assert!((s.absorbed_w - 3.0).abs() <= 1e-12 * 3.0, "absorbed {}", s.absorbed_w);
+        assert_eq!(f.ledger.escaped_w, 0.0);
+        // Independent check of the standard error: Var K = ρ/(1−ρ)², so stderr = P√ρ/(1−ρ)/√N.
+        // K's excess kurtosis is about 6, so the estimated stderr itself scatters by about
+        // √(8/N)/2 < 1 % here: a 5 % tolerance is over 5 of its standard deviations.
+        let predicted = 3.0 * rho.sqrt() / (1.0 - rho) / (photons as f64).sqrt();
+        assert!((s.incident_w_stderr / predicted - 1.0).abs() < 0.05, "stderr {} vs {predicted}", s.incident_w_stderr);
+    }
+}
+
+/// View factor between identical, parallel, directly opposed rectangles a×b at distance c
+/// (Howell, A Catalog of Radiation Heat Transfer Configuration Factors, C-11).
+fn view_factor_parallel_rectangles(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (x1, y1) = (1.0 + x * x, 1.0 + y * y);
+    2.0 / (PI * x * y)
+        * ((x1 * y1 / (x1 + y1 - 1.0)).sqrt().ln() + x * y1.sqrt() * (x / y1.sqrt()).atan()
+            + y * x1.sqrt() * (y / x1.sqrt()).atan()
+            - x * x.atan()
+            - y * y.atan())
+}
+
+#[test]
+fn parallel_squares_receive_power_times_view_factor() {
+    for (a, c) in [(1.0, 1.0), (2.0, 0.5), (0.3, 1.2)] {
+        let toml = format!(
+            r#"
+            [[surfaces]]
+            name = "receiver"
+            material = "absorber"
+            shape = {{ type = "quad", corners = [[0, 0, {c}], [{a}, 0, {c}], [{a}, {a}, {c}], [0, {a}, {c}]] }}
+            [[lights]]
+            name = "emitter"
+            shape = {{ type = "quad", corners = [[0, 0, 0], [{a}, 0, 0], [{a}, {a}, 0], [0, {a}, 0]] }}
+            power_w = 5
+            "#
+        );
+        let f = run(&toml, 200_000, 11);
+        let r = surface(&f, "receiver");
+        let expected = 5.0 * view_factor_parallel_rectangles(a, a, c);
+        assert_z(&format!("view factor a={a} c={c}"), r.incident_w, expected, r.incident_w_stderr, 4.0);
+    }
+}
+
+#[test]
+fn dielectric_slab_transmits_two_n_over_n_squared_plus_one() {
+    // A non-absorbing slab at normal incidence, with all inter-reflections summed incoherently:
+    // T = (1−R)/(1+R) with R = ((n−1)/(n+1))², which simplifies to 2n/(n²+1).
+    for n in [1.5, 2.4] {
+        let toml = format!(
+            r#"
+            [materials.glass]
+            type = "dielectric"
+            ior = {n}
+            [[surfaces]]
+            name = "slab"
+            material = "glass"
+            shape = {{ type = "box", min = [-1, -1, 0.2], max = [1, 1, 0.5] }}
+            [[surfaces]]
+            name = "detector"
+            material = "absorber"
+            shape = {{ type = "quad", corners = [[-3, -3, 1], [3, -3, 1], [3, 3, 1], [-3, 3, 1]] }}
+            [[lights]]
+            name = "beam"
+            shape = {{ type = "quad", corners = [[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]] }}
+            power_w = 1
+            distribution = "collimated"
+            "#
+        );
+        let f = run(&toml, 200_000, 5);
+        let d = surface(&f, "detector");
+        assert_z(&format!("slab n={n}"), d.incident_w, 2.0 * n / (n * n + 1.0), d.incident_w_stderr, 4.0);
+        // What is not transmitted is reflected back to the beam's own (absorbing) face.
+        let back = surface(&f, "beam").absorbed_w;
+        assert!((back + d.incident_w - 1.0).abs() < 1e-12, "reflected {back} + transmitted {}", d.incident_w);
+    }
+}
+
+#[test]
+fn lambertian_transmitter_splits_reflectance_and_transmittance() {
+    // A collimated beam onto a diffuser (ρ = 0.3, τ = 0.5) between two large absorbing plates
+    // that catch everything except what escapes sideways. Arrivals at the diffuser are exactly
+    // the emitted power (first hit), and the diffuser absorbs 1 − ρ − τ of it.
+    let f = run(
+        r#"
+        [materials.diffuser]
+        type = "lambertian"
+        reflectance = 0.3
+        transmittance = 0.5
+        [[surfaces]]
+        name = "diffuser"
+        material = "diffuser"
+        shape = { type = "quad", corners = [[-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]] }
+        [[lights]]
+        name = "beam"
+        shape = { type = "quad", corners = [[-0.1, -0.1, 0], [0.1, -0.1, 0], [0.1, 0.1, 0], [-0.1, 0.1, 0]] }
+        power_w = 2
+        distribution = "collimated"
+        "#,
+        100_000,
+        9,
+    );
+    let d = surface(&f, "diffuser");
+    assert!((d.incident_w - 2.0).abs() < 1e-12);
+    assert_z("diffuser absorbed", d.absorbed_w, 2.0 * 0.2, d.absorbed_w_stderr, 4.0);
+}

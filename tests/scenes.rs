@@ -1,0 +1,133 @@
+//! Every bundled scene loads, runs, and balances its energy ledger; `photon run` writes its three
+//! files and `photon info` describes it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::AtomicBool;
+
+use photon::run::{apply_options, simulate, RunOptions};
+use photon::scene::load;
+
+fn bundled_scenes() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 4, "expected the bundled scenes, found {v:?}");
+    v
+}
+
+#[test]
+fn every_bundled_scene_balances_its_ledger() {
+    for path in bundled_scenes() {
+        let mut scene = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let opts = RunOptions { photons: Some(40_000), threads: Some(2), ..Default::default() };
+        let chosen = apply_options(&mut scene, &opts).unwrap();
+        let r = simulate(&scene, &opts, &chosen, &AtomicBool::new(false)).unwrap();
+        let ledger = r.tallies.ledger(r.emitted_w);
+        // Each photon ends in exactly one bucket, so only f64 rounding can separate the two sides.
+        assert!(ledger.relative_residual() < 1e-9, "{}: {ledger:?}", path.display());
+        assert!((ledger.emitted_w - scene.total_power_w()).abs() <= 1e-12 * ledger.emitted_w);
+        assert_eq!(r.tallies.photons, 40_000);
+    }
+}
+
+fn photon() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_photon"))
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("photon-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn cornell_box_run_writes_three_files_and_info_lists_it() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_box.toml");
+    let out = temp_dir("cornell");
+    let o = photon().arg("run").arg(&scene).arg("--out").arg(&out).args(["--photons", "50000"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let table = String::from_utf8_lossy(&o.stdout);
+    for name in ["floor", "ceiling", "back_wall", "left_wall", "right_wall", "short_block", "tall_block", "light"] {
+        assert!(table.contains(name), "table lacks {name}:\n{table}");
+    }
+    for f in ["flux.json", "flux.csv", "run.json"] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    for key in ["version", "scene", "seed", "photons", "threads", "wall_seconds", "photons_per_second", "effects", "stop_reason"] {
+        assert!(run.get(key).is_some(), "run.json lacks {key}");
+    }
+    assert_eq!(run["photons"], 50000);
+    assert_eq!(run["stop_reason"], "photons");
+    let csv = std::fs::read_to_string(out.join("flux.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 8);
+
+    let o = photon().arg("info").arg(&scene).output().unwrap();
+    assert!(o.status.success());
+    let info = String::from_utf8_lossy(&o.stdout);
+    assert!(info.contains("surfaces (8)") && info.contains("lights (1)") && info.contains("triangles: 32"), "{info}");
+    assert!(info.contains("effects: spectral, diffuse_reflection, camera"), "{info}");
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn flux_json_is_identical_for_one_and_two_threads() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_box.toml");
+    let mut outputs = Vec::new();
+    for threads in ["1", "2", "3"] {
+        let out = temp_dir(&format!("threads{threads}"));
+        // 150 000 photons = 10 batches, so the threads really interleave batches.
+        let o = photon()
+            .arg("run")
+            .arg(&scene)
+            .arg("--out")
+            .arg(&out)
+            .args(["--photons", "150000", "--seed", "42", "--quiet", "--threads", threads])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        outputs.push(std::fs::read(out.join("flux.json")).unwrap());
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+    assert_eq!(outputs[0], outputs[1], "flux.json differs between 1 and 2 threads");
+    assert_eq!(outputs[0], outputs[2], "flux.json differs between 1 and 3 threads");
+}
+
+#[test]
+fn rel_error_stop_is_reproducible_from_the_recorded_photon_count() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/parallel_plates.toml");
+    let out = temp_dir("relerr");
+    let o = photon()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(["--rel-error", "0.01", "--tally", "receiver", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let flux: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["stop_reason"], "rel_error");
+    let receiver = &flux["surfaces"][0];
+    assert!(receiver["rel_error"].as_f64().unwrap() <= 0.01);
+    let photons = run["photons"].as_u64().unwrap();
+    assert!(photons < 1_000_000 && photons % 16_384 == 0, "{photons}");
+    let again = temp_dir("relerr-again");
+    let o = photon()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&again)
+        .args(["--photons", &photons.to_string(), "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    assert_eq!(std::fs::read(out.join("flux.json")).unwrap(), std::fs::read(again.join("flux.json")).unwrap());
+    std::fs::remove_dir_all(&out).unwrap();
+    std::fs::remove_dir_all(&again).unwrap();
+}
