@@ -28,6 +28,8 @@ struct EmitLight {
     origin: Origin,
     distribution: Distribution,
     spectrum: Option<SpectralSampler>,
+    /// Grey transport's colour weights: ∫S·(x̄,ȳ,z̄)dλ / (∫S dλ · ∫ȳ dλ) for the light's spectrum S.
+    grey_xyz: Vec3A,
 }
 
 /// A photon at birth.
@@ -44,12 +46,21 @@ pub struct Birth {
     pub prim: u32,
     /// Wavelength in nm (spectral transport only; NaN in grey transport).
     pub lambda_nm: f64,
+    /// Colour weights (x̄,ȳ,z̄)/∫ȳ that turn a splat of this photon into XYZ.
+    pub xyz: Vec3A,
+    /// Rounding-error bound of `point`.
+    pub point_err: Vec3A,
+    /// Emission axis: the triangle's front normal, or a point light's axis.
+    pub axis: Vec3A,
 }
 
 pub struct Emitter {
     pick: Discrete,
     lights: Vec<EmitLight>,
     pub total_power_w: f64,
+    /// 1/∫ȳ dλ over the wavelength range.
+    y_norm: f64,
+    cmf: &'static crate::color::Cmf,
 }
 
 impl Emitter {
@@ -71,11 +82,27 @@ impl Emitter {
                         Origin::Point { position: position.as_vec3a(), axis: axis.as_vec3a().normalize() }
                     }
                 };
-                EmitLight { origin, distribution: l.distribution, spectrum: SpectralSampler::new(&l.spectrum, range) }
+                let cie = crate::color::cmf();
+                let xyz = cie.integrate(&l.spectrum, range);
+                let norm = l.spectrum.integral(range) * cie.y_integral(range);
+                let grey_xyz = Vec3A::new((xyz[0] / norm) as f32, (xyz[1] / norm) as f32, (xyz[2] / norm) as f32);
+                EmitLight {
+                    origin,
+                    distribution: l.distribution,
+                    spectrum: SpectralSampler::new(&l.spectrum, range),
+                    grey_xyz,
+                }
             })
             .collect();
+        let y_norm = 1.0 / crate::color::cmf().y_integral(range);
         let powers: Vec<f64> = scene.lights.iter().map(|l| l.power_w).collect();
-        Emitter { pick: Discrete::new(&powers), lights, total_power_w: powers.iter().sum() }
+        Emitter {
+            pick: Discrete::new(&powers),
+            lights,
+            total_power_w: powers.iter().sum(),
+            y_norm,
+            cmf: crate::color::cmf(),
+        }
     }
 
     /// Samples one photon. With `SPECTRAL` false no wavelength is drawn.
@@ -83,11 +110,13 @@ impl Emitter {
     pub fn emit<const SPECTRAL: bool>(&self, geo: &crate::geometry::Geometry, s: &mut Sampler) -> Birth {
         let light = self.pick.sample(s.uniform());
         let l = &self.lights[light];
-        let lambda_nm = if SPECTRAL {
+        let (lambda_nm, xyz) = if SPECTRAL {
             // The loader guarantees a positive spectral integral, so a sampler exists.
-            l.spectrum.as_ref().map_or(f64::NAN, |sp| sp.sample(s.uniform()))
+            let lambda = l.spectrum.as_ref().map_or(f64::NAN, |sp| sp.sample(s.uniform()));
+            let c = self.cmf.at(lambda);
+            (lambda, Vec3A::new((c[0] * self.y_norm) as f32, (c[1] * self.y_norm) as f32, (c[2] * self.y_norm) as f32))
         } else {
-            f64::NAN
+            (f64::NAN, l.grey_xyz)
         };
         match &l.origin {
             Origin::Area { prims, pick } => {
@@ -98,15 +127,46 @@ impl Emitter {
                 let normal = geo.normals[prim as usize];
                 let dir = direction(l.distribution, normal, s);
                 let origin = offset_ray_origin(point, err, normal, dir);
-                Birth { light, point, origin, dir, normal, prim, lambda_nm }
+                Birth { light, point, origin, dir, normal, prim, lambda_nm, xyz, point_err: err, axis: normal }
             }
             Origin::Point { position, axis } => {
                 let dir = match l.distribution {
                     Distribution::Isotropic => uniform_sphere(s.uniform_f32(), s.uniform_f32()),
                     other => direction(other, *axis, s),
                 };
-                Birth { light, point: *position, origin: *position, dir, normal: Vec3A::ZERO, prim: NO_PRIM, lambda_nm }
+                Birth {
+                    light,
+                    point: *position,
+                    origin: *position,
+                    dir,
+                    normal: Vec3A::ZERO,
+                    prim: NO_PRIM,
+                    lambda_nm,
+                    xyz,
+                    point_err: Vec3A::ZERO,
+                    axis: *axis,
+                }
             }
+        }
+    }
+}
+
+impl Emitter {
+    /// Solid-angle pdf with which light `light` emits toward unit `w` from a birth with axis `axis`
+    /// (zero behind an area light and for collimated beams, which no pinhole can see).
+    #[inline]
+    pub fn direction_pdf(&self, light: usize, axis: Vec3A, w: Vec3A) -> f32 {
+        use std::f32::consts::PI;
+        let l = &self.lights[light];
+        let is_point = matches!(l.origin, Origin::Point { .. });
+        let cos = axis.dot(w);
+        match l.distribution {
+            Distribution::Isotropic if is_point => 1.0 / (4.0 * PI),
+            _ if cos <= 0.0 => 0.0,
+            Distribution::Lambertian => cos / PI,
+            Distribution::Isotropic => 1.0 / (2.0 * PI),
+            Distribution::CosinePower(e) => (e as f32 + 1.0) / (2.0 * PI) * cos.powf(e as f32),
+            Distribution::Collimated => 0.0,
         }
     }
 }

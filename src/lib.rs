@@ -5,8 +5,10 @@
 //! loop over the `geometry` BVH, `material` decisions) → `tally` (per-history moments, ledger) →
 //! `run` (batches, ordered reduction, stopping) → `output` (atomic files).
 
+pub mod color;
 pub mod emitter;
 pub mod error;
+pub mod film;
 pub mod geometry;
 pub mod material;
 pub mod output;

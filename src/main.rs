@@ -66,19 +66,7 @@ fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
-        Command::Run {
-            scene,
-            out,
-            photons,
-            seed,
-            threads,
-            rel_error,
-            tally,
-            time,
-            max_bounces,
-            no_image: _,
-            quiet,
-        } => {
+        Command::Run { scene, out, photons, seed, threads, rel_error, tally, time, max_bounces, no_image, quiet } => {
             let opts = RunOptions {
                 photons,
                 seed,
@@ -88,6 +76,7 @@ fn main() -> ExitCode {
                 tallies: tally,
                 time_s: time,
                 progress: !quiet,
+                no_image,
             };
             run(&scene, out, &opts, quiet)
         }
@@ -119,6 +108,11 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
     let info = output::run_info(&scene, &result, &flux);
     output::write_json(&out_dir, "flux.json", &flux)?;
     output::write_atomic(&out_dir, "flux.csv", output::flux_csv(&flux).as_bytes())?;
+    if let Some(film) = &result.film {
+        let image = film.image(result.emitted_w);
+        output::write_exr(&out_dir, &image)?;
+        output::write_png(&out_dir, &image)?;
+    }
     output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {
         print!("{}", output::summary_table(&flux, &info));

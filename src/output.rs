@@ -175,3 +175,61 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
     ));
     s
 }
+
+/// image.exr: linear R, G, B (sRGB primaries, D65), Y (CIE 1931) and Y_var, f32.
+pub fn write_exr(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Error> {
+    use exr::prelude::*;
+    let (w, h) = (image.width, image.height);
+    let plane = |c: usize| -> Vec<f32> { image.rgb.index_axis(ndarray::Axis(2), c).iter().copied().collect() };
+    let channels = AnyChannels::sort(SmallVec::from_vec(vec![
+        AnyChannel::new("R", FlatSamples::F32(plane(0))),
+        AnyChannel::new("G", FlatSamples::F32(plane(1))),
+        AnyChannel::new("B", FlatSamples::F32(plane(2))),
+        AnyChannel::new("Y", FlatSamples::F32(image.xyz.column(1).to_vec())),
+        AnyChannel::new("Y_var", FlatSamples::F32(image.y_var.clone())),
+    ]));
+    let layer = Layer::new((w, h), LayerAttributes::named("light_traced"), Encoding::FAST_LOSSLESS, channels);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_buffered(&mut bytes)
+        .map_err(|e| crate::error::Error::Other(format!("cannot encode image.exr: {e}")))?;
+    write_atomic(dir, "image.exr", bytes.get_ref())
+}
+
+/// Exposure of the PNG preview: the log-average luminance of the lit pixels maps to middle grey
+/// 0.18 (Reinhard et al. 2002, "key" 0.18), then L/(1 + L) compresses highlights such as the
+/// lamp itself, and the sRGB curve encodes.
+pub fn preview_exposure(image: &crate::film::Image) -> f32 {
+    let ys: Vec<f64> = image.xyz.column(1).iter().filter(|&&y| y > 0.0).map(|&y| y as f64).collect();
+    if ys.is_empty() {
+        return 1.0;
+    }
+    let log_avg = (ys.iter().map(|y| y.ln()).sum::<f64>() / ys.len() as f64).exp();
+    (0.18 / log_avg) as f32
+}
+
+pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Error> {
+    let exposure = preview_exposure(image);
+    let mut data = Vec::with_capacity(image.width * image.height * 3);
+    for p in 0..image.width * image.height {
+        let (row, col) = (p / image.width, p % image.width);
+        let y = image.xyz[[p, 1]] * exposure;
+        let compress = if y > 0.0 { 1.0 / (1.0 + y) } else { 1.0 };
+        for c in 0..3 {
+            let v = (image.rgb[[row, col, c]] * exposure * compress).clamp(0.0, 1.0);
+            data.push((crate::color::srgb_encode(v) * 255.0 + 0.5) as u8);
+        }
+    }
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, image.width as u32, image.height as u32);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut w = enc.write_header().map_err(|e| Error::Other(format!("cannot encode image.png: {e}")))?;
+        w.write_image_data(&data).map_err(|e| Error::Other(format!("cannot encode image.png: {e}")))?;
+    }
+    write_atomic(dir, "image.png", &bytes)
+}

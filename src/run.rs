@@ -8,9 +8,10 @@ use rayon::prelude::*;
 
 use crate::emitter::Emitter;
 use crate::error::Error;
+use crate::film::{CameraModel, Film};
 use crate::scene::Scene;
 use crate::tally::Tallies;
-use crate::transport::trace_batch_for;
+use crate::transport::Kernel;
 
 /// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
 pub const BATCH_PHOTONS: u64 = 16_384;
@@ -28,6 +29,8 @@ pub struct RunOptions {
     pub tallies: Vec<String>,
     pub time_s: Option<f64>,
     pub progress: bool,
+    /// Skip the camera film entirely.
+    pub no_image: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -46,6 +49,8 @@ pub struct RunResult {
     pub threads: usize,
     pub wall_seconds: f64,
     pub stop_reason: StopReason,
+    /// The light-traced film, when the scene has a camera and the image was not switched off.
+    pub film: Option<Film>,
 }
 
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
@@ -59,6 +64,9 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     }
     if let Some(s) = opts.seed {
         scene.simulation.seed = s;
+    }
+    if opts.no_image {
+        scene.effects.camera = false;
     }
     if let Some(b) = opts.max_bounces {
         scene.simulation.max_bounces = b;
@@ -112,6 +120,9 @@ pub fn simulate(
         .map_err(|e| Error::Other(format!("cannot start threads: {e}")))?;
     let emitter = Emitter::new(scene);
     let seed = scene.simulation.seed;
+    let camera = scene.camera.as_ref().filter(|_| scene.effects.camera).map(CameraModel::new);
+    let kernel = Kernel { scene, emitter: &emitter, camera: camera.as_ref() };
+    let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
     let start = Instant::now();
 
     // With an accuracy or time target the photon count is only a cap, and only when it was given.
@@ -127,11 +138,13 @@ pub fn simulate(
     let mut stop = StopReason::Photons;
     'rounds: while next < total_batches {
         let end = (next + round).min(total_batches);
-        let batches: Vec<Tallies> = pool.install(|| {
-            (next..end).into_par_iter().map(|b| trace_batch_for(scene, &emitter, seed, b, photons_in(b))).collect()
-        });
-        for (b, t) in (next..end).zip(&batches) {
+        let batches: Vec<_> =
+            pool.install(|| (next..end).into_par_iter().map(|b| kernel.trace_batch(b, photons_in(b))).collect());
+        for (b, (t, f)) in (next..end).zip(&batches) {
             tallies.merge(t);
+            if let (Some(film), Some(f)) = (film.as_mut(), f) {
+                film.merge(f, t.photons);
+            }
             if let Some(target) = opts.rel_error {
                 if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
                     && tallies.worst_rel_error(rel_error_surfaces).is_some_and(|e| e <= target)
@@ -164,6 +177,7 @@ pub fn simulate(
         threads,
         wall_seconds: start.elapsed().as_secs_f64(),
         stop_reason: stop,
+        film,
     })
 }
 

@@ -1,0 +1,119 @@
+//! Colour: the CIE 1931 2° colour-matching functions (1 nm table from `spectra/`, embedded at
+//! build time) and the XYZ → linear sRGB (D65) matrix.
+
+use std::sync::OnceLock;
+
+use glam::Vec3;
+
+use crate::spectrum::Spectrum;
+
+const CIE_CSV: &str = include_str!("../spectra/cie1931_2deg_xyz.csv");
+
+/// x̄, ȳ, z̄ at 1 nm from `CIE_FIRST_NM` to 830 nm.
+pub struct Cmf {
+    first_nm: f64,
+    rows: Vec<[f64; 3]>,
+}
+
+pub fn cmf() -> &'static Cmf {
+    static TABLE: OnceLock<Cmf> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let mut rows = Vec::new();
+        let mut first_nm = f64::NAN;
+        for line in CIE_CSV.lines().skip(1).filter(|l| !l.trim().is_empty()) {
+            let v: Vec<f64> = line.split(',').map(|s| s.trim().parse().expect("CIE table is numeric")).collect();
+            if rows.is_empty() {
+                first_nm = v[0];
+            }
+            assert_eq!(v[0], first_nm + rows.len() as f64, "CIE table must be on a 1 nm grid");
+            rows.push([v[1], v[2], v[3]]);
+        }
+        Cmf { first_nm, rows }
+    })
+}
+
+impl Cmf {
+    /// (x̄, ȳ, z̄)(λ), linear between the 1 nm rows, zero outside the table.
+    #[inline]
+    pub fn at(&self, lambda_nm: f64) -> [f64; 3] {
+        let x = lambda_nm - self.first_nm;
+        if !(x >= 0.0) || x > (self.rows.len() - 1) as f64 {
+            return [0.0; 3];
+        }
+        let i = (x as usize).min(self.rows.len() - 2);
+        let f = x - i as f64;
+        let (a, b) = (self.rows[i], self.rows[i + 1]);
+        [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])]
+    }
+
+    /// ∫ s(λ)·(x̄, ȳ, z̄)(λ) dλ over `range`, trapezoid on the 1 nm grid merged with s's breakpoints.
+    pub fn integrate(&self, s: &Spectrum, range: (f64, f64)) -> [f64; 3] {
+        let mut xs = s.breakpoints(range);
+        let mut x = range.0.floor() + 1.0;
+        while x < range.1 {
+            xs.push(x);
+            x += 1.0;
+        }
+        xs.sort_by(f64::total_cmp);
+        xs.dedup();
+        let mut acc = [0.0; 3];
+        for w in xs.windows(2) {
+            let (fa, fb) = (self.at(w[0]), self.at(w[1]));
+            let (sa, sb) = (s.eval(w[0]), s.eval(w[1]));
+            for c in 0..3 {
+                acc[c] += 0.5 * (sa * fa[c] + sb * fb[c]) * (w[1] - w[0]);
+            }
+        }
+        acc
+    }
+
+    /// ∫ȳ dλ over `range`: the normalisation that makes a flat spectral radiance c read as Y = c.
+    pub fn y_integral(&self, range: (f64, f64)) -> f64 {
+        self.integrate(&Spectrum::Constant(1.0), range)[1]
+    }
+}
+
+/// XYZ → linear sRGB (IEC 61966-2-1, D65 white).
+pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
+    Vec3::new(
+        3.240_454_2 * xyz.x - 1.537_138_5 * xyz.y - 0.498_531_4 * xyz.z,
+        -0.969_266_0 * xyz.x + 1.876_010_8 * xyz.y + 0.041_556_0 * xyz.z,
+        0.055_643_4 * xyz.x - 0.204_025_9 * xyz.y + 1.057_225_2 * xyz.z,
+    )
+}
+
+/// The sRGB transfer curve (linear → encoded), for the PNG preview.
+pub fn srgb_encode(v: f32) -> f32 {
+    if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cie_y_sums_and_peak_match_the_reference() {
+        // shared/data/SOURCES.md: Σȳ over the 1 nm grid 360–830 = 106.856917; ȳ(555) = 1.
+        let c = cmf();
+        let sum: f64 = (360..=830).map(|l| c.at(l as f64)[1]).sum();
+        assert!((sum - 106.856917).abs() < 1e-5, "{sum}");
+        assert_eq!(c.at(555.0)[1], 1.0);
+    }
+
+    #[test]
+    fn d65_white_maps_to_equal_rgb() {
+        // D65's chromaticity is sRGB's white point, so its linear RGB components are equal.
+        let d65 = crate::scene::read_spectrum_csv(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/spectra/cie_d65.csv"
+        )))
+        .unwrap();
+        let xyz = cmf().integrate(&d65, (360.0, 830.0));
+        let rgb = xyz_to_linear_srgb(Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32));
+        assert!((rgb.x / rgb.y - 1.0).abs() < 2e-3 && (rgb.z / rgb.y - 1.0).abs() < 2e-3, "{rgb}");
+    }
+}

@@ -1,0 +1,187 @@
+//! The pinhole camera and its film: light tracing's "next event to the camera".
+//!
+//! Pixel value. Pixel j reports the mean radiance over its footprint on an image plane at unit
+//! distance: I_j = (1/A_pix) ∫_{Ω_j} L(ω) dω / cos³θ_c, where θ_c is the angle to the optical
+//! axis (dA_plane = dω / cos³θ_c). A surface of constant radiance c therefore reads I_j = c.
+//!
+//! Importance in area measure. With dω = cosθ_x dA / d² for a point x at distance d:
+//! I_j = ∫_A L(x → e) · cosθ_x / (d² A_pix cos³θ_c) · V(x, e) dA, for x projecting into pixel j.
+//!
+//! Light-tracing estimator (one term per photon vertex, Φ the weight arriving at x):
+//! - emission vertex with direction pdf p(ω) per solid angle: L dA = Φ p(ω)/cosθ_x, so the
+//!   splat is Φ · p(ω) / (d² A_pix cos³θ_c) (the cosθ_x cancel; the same holds for a point light,
+//!   whose intensity is Φ p(ω));
+//! - diffuse vertex with BSDF f (ρ/π reflected, τ/π transmitted): L dA = Φ f, so the splat is
+//!   Φ · f · |cosθ_x| / (d² A_pix cos³θ_c).
+//!   Specular vertices (mirror, dielectric) have a delta BSDF and cannot be connected to a pinhole.
+//!
+//! Colour. Each splat is multiplied by the photon's colour weights: (x̄, ȳ, z̄)(λ)/∫ȳ for a spectral
+//! photon, or its light's mean (x̄, ȳ, z̄)/∫ȳ under the light's spectrum in grey transport; so a
+//! flat spectral radiance c reads Y = c.
+
+use glam::Vec3A;
+use ndarray::{Array2, Array3};
+
+use crate::scene::Camera;
+
+pub struct CameraModel {
+    pub position: Vec3A,
+    forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
+    /// Half extents of the image plane at unit distance.
+    half_w: f32,
+    half_h: f32,
+    pub width: usize,
+    pub height: usize,
+    /// Area of one pixel on the unit-distance image plane.
+    pixel_area: f32,
+}
+
+/// Where a world point lands on the film, and the factor 1/(d² A_pix cos³θ_c) of its splat.
+#[derive(Clone, Copy, Debug)]
+pub struct Projection {
+    pub pixel: usize,
+    /// Unit direction from the point toward the camera, and the distance.
+    pub to_camera: Vec3A,
+    pub distance: f32,
+    pub importance: f32,
+}
+
+impl CameraModel {
+    pub fn new(c: &Camera) -> Self {
+        let position = c.position.as_vec3a();
+        let forward = (c.look_at - c.position).normalize().as_vec3a();
+        // Right-handed: with y up and looking along +z, image-right is −x.
+        let right = forward.cross(c.up.as_vec3a()).normalize();
+        let up = right.cross(forward);
+        let [width, height] = c.resolution.map(|r| r as usize);
+        let half_w = (c.fov_deg.to_radians() * 0.5).tan() as f32;
+        let half_h = half_w * height as f32 / width as f32;
+        let pixel_w = 2.0 * half_w / width as f32;
+        CameraModel { position, forward, right, up, half_w, half_h, width, height, pixel_area: pixel_w * pixel_w }
+    }
+
+    #[inline]
+    pub fn project(&self, p: Vec3A) -> Option<Projection> {
+        let v = p - self.position;
+        let z = v.dot(self.forward);
+        if z <= 0.0 {
+            return None;
+        }
+        let sx = v.dot(self.right) / z / self.half_w;
+        let sy = v.dot(self.up) / z / self.half_h;
+        if !(sx > -1.0 && sx < 1.0 && sy > -1.0 && sy < 1.0) {
+            return None;
+        }
+        let col = (((sx + 1.0) * 0.5 * self.width as f32) as usize).min(self.width - 1);
+        let row = (((1.0 - sy) * 0.5 * self.height as f32) as usize).min(self.height - 1);
+        let d2 = v.length_squared();
+        let distance = d2.sqrt();
+        let cos_c = z / distance;
+        Some(Projection {
+            pixel: row * self.width + col,
+            to_camera: -v / distance,
+            distance,
+            importance: 1.0 / (d2 * self.pixel_area * cos_c * cos_c * cos_c),
+        })
+    }
+}
+
+/// One batch's splats: XYZ per pixel, in units of emitted photon weight.
+pub struct FilmBatch {
+    pub xyz: Array2<f32>,
+}
+
+impl FilmBatch {
+    pub fn new(pixels: usize) -> Self {
+        FilmBatch { xyz: Array2::zeros((pixels, 3)) }
+    }
+
+    #[inline]
+    pub fn add(&mut self, pixel: usize, xyz: Vec3A) {
+        let mut row = self.xyz.row_mut(pixel);
+        row[0] += xyz.x;
+        row[1] += xyz.y;
+        row[2] += xyz.z;
+    }
+}
+
+/// The run's film: batch sums merged in batch order (f64), plus Σ S_b²/n_b of Y for the variance
+/// between batches.
+pub struct Film {
+    pub width: usize,
+    pub height: usize,
+    xyz_sum: Array2<f64>,
+    y_sq_over_n: Vec<f64>,
+    photons: u64,
+    batches: u64,
+}
+
+/// The finished image: per pixel linear XYZ and RGB radiance, and Y's variance.
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    /// (pixel, channel) with channels X, Y, Z.
+    pub xyz: Array2<f32>,
+    pub rgb: Array3<f32>,
+    pub y_var: Vec<f32>,
+    pub batches: u64,
+}
+
+impl Film {
+    pub fn new(width: usize, height: usize) -> Self {
+        Film {
+            width,
+            height,
+            xyz_sum: Array2::zeros((width * height, 3)),
+            y_sq_over_n: vec![0.0; width * height],
+            photons: 0,
+            batches: 0,
+        }
+    }
+
+    pub fn merge(&mut self, b: &FilmBatch, photons: u64) {
+        let n = photons as f64;
+        for (p, row) in b.xyz.rows().into_iter().enumerate() {
+            let mut acc = self.xyz_sum.row_mut(p);
+            acc[0] += row[0] as f64;
+            acc[1] += row[1] as f64;
+            acc[2] += row[2] as f64;
+            self.y_sq_over_n[p] += (row[1] as f64).powi(2) / n;
+        }
+        self.photons += photons;
+        self.batches += 1;
+    }
+
+    /// `watts_per_weight` = Φ_total/N. Pixel mean m = ΣS_b/N; the per-photon variance is
+    /// estimated from the batch means m_b = S_b/n_b as Σ n_b (m_b − m)²/(K − 1) = (Σ S_b²/n_b − N m²)/(K − 1),
+    /// and the variance of the pixel's estimate is that over N.
+    pub fn image(&self, emitted_w: f64) -> Image {
+        let n = self.photons.max(1) as f64;
+        let k = self.batches as f64;
+        let w = emitted_w / n;
+        let pixels = self.width * self.height;
+        let mut xyz = Array2::zeros((pixels, 3));
+        let mut rgb = Array3::zeros((self.height, self.width, 3));
+        let mut y_var = vec![0.0f32; pixels];
+        for p in 0..pixels {
+            let s = self.xyz_sum.row(p);
+            let v = Vec3A::new((s[0] * w) as f32, (s[1] * w) as f32, (s[2] * w) as f32);
+            xyz[[p, 0]] = v.x;
+            xyz[[p, 1]] = v.y;
+            xyz[[p, 2]] = v.z;
+            let c = crate::color::xyz_to_linear_srgb(v.into());
+            let (row, col) = (p / self.width, p % self.width);
+            rgb[[row, col, 0]] = c.x;
+            rgb[[row, col, 1]] = c.y;
+            rgb[[row, col, 2]] = c.z;
+            if self.batches > 1 {
+                let mean = s[1] / n;
+                let per_photon_var = ((self.y_sq_over_n[p] - n * mean * mean) / (k - 1.0)).max(0.0);
+                y_var[p] = (per_photon_var / n * (emitted_w * emitted_w)) as f32;
+            }
+        }
+        Image { width: self.width, height: self.height, xyz, rgb, y_var, batches: self.batches }
+    }
+}
