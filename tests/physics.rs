@@ -75,7 +75,8 @@ fn view_factor_parallel_rectangles(a: f64, b: f64, c: f64) -> f64 {
     let (x, y) = (a / c, b / c);
     let (x1, y1) = (1.0 + x * x, 1.0 + y * y);
     2.0 / (PI * x * y)
-        * ((x1 * y1 / (x1 + y1 - 1.0)).sqrt().ln() + x * y1.sqrt() * (x / y1.sqrt()).atan()
+        * ((x1 * y1 / (x1 + y1 - 1.0)).sqrt().ln()
+            + x * y1.sqrt() * (x / y1.sqrt()).atan()
             + y * x1.sqrt() * (y / x1.sqrt()).atan()
             - x * x.atan()
             - y * y.atan())

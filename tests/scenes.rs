@@ -58,7 +58,17 @@ fn cornell_box_run_writes_three_files_and_info_lists_it() {
         assert!(out.join(f).is_file(), "{f} missing");
     }
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
-    for key in ["version", "scene", "seed", "photons", "threads", "wall_seconds", "photons_per_second", "effects", "stop_reason"] {
+    for key in [
+        "version",
+        "scene",
+        "seed",
+        "photons",
+        "threads",
+        "wall_seconds",
+        "photons_per_second",
+        "effects",
+        "stop_reason",
+    ] {
         assert!(run.get(key).is_some(), "run.json lacks {key}");
     }
     assert_eq!(run["photons"], 50000);
@@ -110,7 +120,8 @@ fn rel_error_stop_is_reproducible_from_the_recorded_photon_count() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let flux: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
+    let flux: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["stop_reason"], "rel_error");
     let receiver = &flux["surfaces"][0];

@@ -16,6 +16,10 @@ use crate::spectrum::Spectrum;
 
 const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights"];
 
+/// Largest coordinate accepted, in metres: far beyond any real scene, and small enough that
+/// the BVH's single-precision bounds and surface areas cannot overflow.
+const MAX_COORD_M: f64 = 1e15;
+
 /// Loads and checks a scene file.
 pub fn load(path: &Path) -> Result<Scene, Error> {
     let text = std::fs::read_to_string(path)
@@ -247,7 +251,11 @@ impl<'s> Loader<'s> {
             return Err(self.src.error("lights", None, "the scene has no light: add a [[lights]] entry"));
         }
 
-        let camera = root.with("camera", |n| self.camera(n.table()?))?;
+        let camera = root.with("camera", |n| self.camera(n.table()?))?.map(|c| Camera {
+            position: c.position * unit_m,
+            look_at: c.look_at * unit_m,
+            ..c
+        });
 
         // Triangulate: surfaces first, then area lights, each triangle tagged with its surface.
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
@@ -276,6 +284,7 @@ impl<'s> Loader<'s> {
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
             let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line)?;
+            self.check_extent(&t, unit_m, &key, e.shape_line)?;
             add_surface(&e.name, e.material, t, None);
         }
         let mut lights = Vec::with_capacity(light_specs.len());
@@ -289,6 +298,7 @@ impl<'s> Loader<'s> {
                 }
                 other => {
                     let t = shapes::triangulate(other, self.src, &key, spec.shape_line)?;
+                    self.check_extent(&t, unit_m, &key, spec.shape_line)?;
                     let (surface, area) = add_surface(&spec.name, spec.material, t, Some(i));
                     (LightShape::Area { surface }, area)
                 }
@@ -321,6 +331,21 @@ impl<'s> Loader<'s> {
         }
         let geometry = Geometry::build(tris, tri_surface);
         Ok(Scene { path: path.to_path_buf(), simulation, materials, surfaces, lights, camera, geometry, effects })
+    }
+
+    /// Rejects geometry too far out for the single-precision BVH, whose bounds and areas
+    /// would overflow (it panics on them).
+    fn check_extent(&self, tris: &[[DVec3; 3]], unit_m: f64, key: &str, line: usize) -> R<()> {
+        let far = tris.iter().flatten().map(|v| v.abs().max_element() * unit_m).find(|c| !(*c <= MAX_COORD_M));
+        match far {
+            Some(c) => Err(InputError::new(
+                self.src.file,
+                key,
+                Some(line),
+                format!("a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin"),
+            )),
+            None => Ok(()),
+        }
     }
 
     fn unit(&self, root: Table<'s, '_>) -> R<f64> {
@@ -569,10 +594,10 @@ impl<'s> Loader<'s> {
                     }
                     Ok((v[0], v[1]))
                 })?;
-                check_table(&points).map_err(|(i, m)| {
-                    let p = index_path(n.path, i);
-                    let item = &n.array().unwrap()[i];
-                    Node { src: n.src, path: &p, value: item }.err(m)
+                // An empty table has no row to point at: the table itself is at fault.
+                check_table(&points).map_err(|(i, m)| match n.array().unwrap().get(i) {
+                    Some(item) => Node { src: n.src, path: &index_path(n.path, i), value: item }.err(m),
+                    None => n.err(m),
                 })?;
                 Ok(Spectrum::Table(points))
             }),

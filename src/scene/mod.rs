@@ -13,7 +13,7 @@ use glam::DVec3;
 use crate::geometry::Geometry;
 use crate::spectrum::Spectrum;
 
-pub use load::{load, load_str};
+pub use load::{load, load_str, read_spectrum_csv};
 
 #[derive(Clone, Debug)]
 pub struct Simulation {

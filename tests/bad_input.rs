@@ -1,0 +1,816 @@
+//! Bad input is rejected properly: every malformed scene, mesh, spectrum file or command line
+//! makes `photon` exit with status 2, with a message of the form `FILE:LINE: `KEY`: message`
+//! naming the file, the key path and the line, and without creating the output folder.
+//!
+//! Each case starts from one small valid scene and changes one thing in it, so that every
+//! failure has exactly one cause.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A minimal valid scene: one Lambertian quad and one quad light.
+const BASE: &str = r#"[materials.white]
+type = "lambertian"
+reflectance = 0.5
+
+[[surfaces]]
+name = "floor"
+material = "white"
+shape = { type = "quad", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }
+
+[[lights]]
+name = "lamp"
+shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
+power_w = 10
+"#;
+
+/// A second surface, appended to `BASE` where a case needs one.
+const SECOND_SURFACE: &str = r#"
+[[surfaces]]
+name = "wall"
+material = "white"
+shape = { type = "quad", corners = [[0, 0, 0], [0, 1, 0], [0, 1, 1], [0, 0, 1]] }
+"#;
+
+const RUN: &[&str] = &["run", "{scene}", "--out", "{out}", "--photons", "1000", "--quiet"];
+const INFO: &[&str] = &["info", "{scene}"];
+
+/// `text` with `from` (which must occur exactly once) replaced by `to`.
+fn edit(text: &str, from: &str, to: &str) -> String {
+    assert_eq!(text.matches(from).count(), 1, "`{from}` must occur exactly once in the scene being edited");
+    text.replacen(from, to, 1)
+}
+
+/// 1-based number of the `n`th (1-based) line of `text` that contains `needle`.
+fn line_of_nth(text: &str, needle: &str, n: usize) -> usize {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(needle))
+        .nth(n - 1)
+        .map(|(i, _)| i + 1)
+        .unwrap_or_else(|| panic!("no line number {n} containing `{needle}`"))
+}
+
+/// 1-based number of the only line of `text` that contains `needle`.
+fn line_of(text: &str, needle: &str) -> usize {
+    assert_eq!(text.lines().filter(|l| l.contains(needle)).count(), 1, "`{needle}` must be on exactly one line");
+    line_of_nth(text, needle, 1)
+}
+
+/// The start of the message for a problem at `line` of the scene file, under key path `key`.
+fn at(line: usize, key: &str) -> String {
+    format!("error: {{scene}}:{line}: `{key}`: ")
+}
+
+/// A fresh, empty folder for one case.
+fn case_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("photon-bad-input-{name}-{}", std::process::id()));
+    if dir.exists() {
+        fs::remove_dir_all(&dir).unwrap();
+    }
+    fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Writes `scene.toml` (unless `toml` is None) and `extra_files` into a fresh folder and runs
+/// `photon` with `args`, where `{scene}`, `{out}` and `{dir}` stand for the scene file, the output
+/// folder and the case's folder.
+fn photon(name: &str, toml: Option<&str>, extra_files: &[(&str, &str)], args: &[&str]) -> (PathBuf, Output) {
+    let dir = case_dir(name);
+    let scene = dir.join("scene.toml");
+    if let Some(text) = toml {
+        fs::write(&scene, text).unwrap();
+    }
+    for (rel, text) in extra_files {
+        let path = dir.join(rel);
+        fs::create_dir_all(path.parent().unwrap()).unwrap();
+        fs::write(path, text).unwrap();
+    }
+    let args: Vec<String> = args.iter().map(|a| expand(a, &dir)).collect();
+    let output =
+        Command::new(env!("CARGO_BIN_EXE_photon")).args(&args).current_dir(&dir).output().expect("cannot start photon");
+    (dir, output)
+}
+
+fn expand(s: &str, dir: &Path) -> String {
+    s.replace("{scene}", &dir.join("scene.toml").display().to_string())
+        .replace("{out}", &dir.join("out").display().to_string())
+        .replace("{dir}", &dir.display().to_string())
+}
+
+/// Runs `photon ARGS` on the scene and checks that it is rejected as bad input: exit status 2,
+/// every string of `must_contain` (placeholders expanded) in stderr, no panic, nothing on
+/// stdout and no output folder.
+fn expect_exit2(name: &str, toml: Option<&str>, extra_files: &[(&str, &str)], args: &[&str], must_contain: &[&str]) {
+    let (dir, out) = photon(name, toml, extra_files, args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let context = format!("case `{name}`\n--- stderr ---\n{stderr}--- stdout ---\n{stdout}");
+    assert_eq!(out.status.code(), Some(2), "wrong exit status; {context}");
+    assert!(!stderr.contains("panicked"), "photon panicked; {context}");
+    assert!(stdout.is_empty(), "nothing belongs on stdout; {context}");
+    for s in must_contain {
+        let s = expand(s, &dir);
+        assert!(stderr.contains(&s), "stderr lacks `{s}`; {context}");
+    }
+    assert!(!dir.join("out").exists(), "the output folder was created for bad input; {context}");
+    fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `photon run` on a bad scene (or with bad files beside it).
+fn expect_bad(name: &str, toml: &str, extra_files: &[(&str, &str)], must_contain: &[&str]) {
+    expect_exit2(name, Some(toml), extra_files, RUN, must_contain);
+}
+
+/// `photon info` on a bad scene.
+fn expect_bad_info(name: &str, toml: &str, extra_files: &[(&str, &str)], must_contain: &[&str]) {
+    expect_exit2(name, Some(toml), extra_files, INFO, must_contain);
+}
+
+/// `photon run SCENE --out OUT` on the valid base scene with the arguments `extra_args`.
+fn expect_bad_args(name: &str, extra_args: &[&str], must_contain: &[&str]) {
+    let args: Vec<&str> = ["run", "{scene}", "--out", "{out}", "--quiet"].iter().chain(extra_args).copied().collect();
+    expect_exit2(name, Some(BASE), &[], &args, must_contain);
+}
+
+// ---------------------------------------------------------------- the base scenes are valid
+
+#[test]
+fn base_scene_is_valid() {
+    for (name, toml) in [("base-valid", BASE.to_string()), ("base2-valid", format!("{BASE}{SECOND_SURFACE}"))] {
+        let (dir, out) = photon(name, Some(&toml), &[], RUN);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{name}: {stderr}");
+        assert!(dir.join("out").join("flux.json").exists(), "{name}");
+        let (dir2, out) = photon(&format!("{name}-info"), Some(&toml), &[], INFO);
+        assert_eq!(out.status.code(), Some(0), "{name}: info");
+        fs::remove_dir_all(dir).unwrap();
+        fs::remove_dir_all(dir2).unwrap();
+    }
+}
+
+// ---------------------------------------------------------------- the file as a whole
+
+#[test]
+fn empty_file() {
+    expect_bad("empty", "", &[], &["error: {scene}: the scene file is empty"]);
+}
+
+#[test]
+fn blank_file() {
+    expect_bad("blank", "\n   \n\n", &[], &["error: {scene}: the scene file is empty"]);
+}
+
+#[test]
+fn missing_scene_file() {
+    expect_exit2("missing-scene", None, &[], RUN, &["error: {scene}: cannot read the scene file"]);
+}
+
+#[test]
+fn toml_syntax_error() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = = 0.5");
+    let line = line_of(&toml, "reflectance");
+    expect_bad("syntax", &toml, &[], &[&format!("error: {{scene}}:{line}: TOML syntax error")]);
+}
+
+#[test]
+fn no_light() {
+    let toml = BASE.split("[[lights]]").next().unwrap();
+    expect_bad("no-light", toml, &[], &["error: {scene}: `lights`: the scene has no light"]);
+}
+
+// ---------------------------------------------------------------- keys and types
+
+#[test]
+fn unknown_top_level_key() {
+    let toml = format!("colour = \"red\"\n{BASE}");
+    expect_bad(
+        "unknown-root-key",
+        &toml,
+        &[],
+        &[
+            &at(1, "colour"),
+            "unknown key `colour`; allowed keys here: simulation, camera, scene, materials, surfaces, lights",
+        ],
+    );
+}
+
+#[test]
+fn unknown_material_key() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectivity = 0.5");
+    let line = line_of(&toml, "reflectivity");
+    expect_bad(
+        "unknown-material-key",
+        &toml,
+        &[],
+        &[
+            &at(line, "materials.white.reflectivity"),
+            "unknown key `reflectivity`; allowed keys here: type, reflectance, transmittance",
+        ],
+    );
+}
+
+#[test]
+fn missing_surface_shape() {
+    let shape_line = BASE.lines().find(|l| l.starts_with("shape") && l.contains("[0, 0, 0]")).unwrap();
+    let toml = edit(BASE, &format!("{shape_line}\n"), "");
+    // A missing key is reported at its table: here the `[[surfaces]]` header.
+    let line = line_of(&toml, "[[surfaces]]");
+    expect_bad("missing-shape", &toml, &[], &[&at(line, "surfaces[0].shape"), "missing required key `shape`"]);
+}
+
+#[test]
+fn missing_material_type() {
+    let toml = edit(BASE, "type = \"lambertian\"\n", "");
+    expect_bad(
+        "missing-type",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "[materials.white]"), "materials.white.type"), "missing required key `type`"],
+    );
+}
+
+#[test]
+fn string_where_a_number_is_expected() {
+    let toml = edit(BASE, "power_w = 10", "power_w = \"ten\"");
+    expect_bad(
+        "wrong-type",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "power_w"), "lights[0].power_w"), "expected a number, found a string"],
+    );
+}
+
+#[test]
+fn number_where_a_point_is_expected() {
+    let toml = edit(BASE, "[1, 0, 1], [1, 0, 0]", "[1, 0, 1], 5");
+    expect_bad(
+        "wrong-type-point",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "[1, 0, 1], 5"), "surfaces[0].shape.corners[3]"), "expected an array, found an integer"],
+    );
+}
+
+#[test]
+fn unknown_material_type() {
+    let toml = edit(BASE, "\"lambertian\"", "\"lambertain\"");
+    expect_bad(
+        "unknown-material-type",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "lambertain"), "materials.white.type"),
+            "unknown material type \"lambertain\"; known types: absorber, lambertian, mirror, dielectric",
+        ],
+    );
+}
+
+#[test]
+fn unknown_shape_type() {
+    let toml = edit(BASE, "{ type = \"quad\", corners = [[0, 0, 0]", "{ type = \"triangle\", corners = [[0, 0, 0]");
+    expect_bad(
+        "unknown-shape-type",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "triangle"), "surfaces[0].shape.type"), "unknown shape type \"triangle\""],
+    );
+}
+
+#[test]
+fn point_shape_on_a_surface() {
+    let shape_line = BASE.lines().find(|l| l.starts_with("shape") && l.contains("[0, 0, 0]")).unwrap();
+    let toml = edit(BASE, shape_line, "shape = { type = \"point\", position = [0, 0, 0] }");
+    expect_bad(
+        "point-surface",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "\"point\""), "surfaces[0].shape.type"), "`point` is for lights only"],
+    );
+}
+
+#[test]
+fn unknown_distribution() {
+    let toml = edit(BASE, "power_w = 10", "power_w = 10\ndistribution = \"spot\"");
+    expect_bad(
+        "unknown-distribution",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution"), "unknown distribution \"spot\""],
+    );
+}
+
+#[test]
+fn surface_names_a_missing_material() {
+    let toml = edit(BASE, "material = \"white\"", "material = \"whte\"");
+    expect_bad(
+        "missing-material",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "whte"), "surfaces[0].material"),
+            "no material named \"whte\"; defined materials: absorber, white",
+        ],
+    );
+}
+
+#[test]
+fn duplicate_surface_names() {
+    let toml = format!("{BASE}{}", edit(SECOND_SURFACE, "name = \"wall\"", "name = \"floor\""));
+    expect_bad(
+        "duplicate-surface",
+        &toml,
+        &[],
+        &[
+            &at(line_of_nth(&toml, "name = \"floor\"", 2), "surfaces[1]"),
+            "duplicate name \"floor\": `surfaces[0]` already uses it",
+        ],
+    );
+}
+
+#[test]
+fn light_shares_a_surface_name() {
+    let toml = edit(BASE, "name = \"lamp\"", "name = \"floor\"");
+    expect_bad(
+        "duplicate-light",
+        &toml,
+        &[],
+        &[
+            &at(line_of_nth(&toml, "name = \"floor\"", 2), "lights[0]"),
+            "duplicate name \"floor\": `surfaces[0]` already uses it",
+        ],
+    );
+}
+
+// ---------------------------------------------------------------- values that cannot be physical
+
+#[test]
+fn reflectance_below_zero() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = -0.1");
+    expect_bad(
+        "reflectance-negative",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "reflectance"), "materials.white.reflectance"), "must not be negative, found -0.1"],
+    );
+}
+
+#[test]
+fn reflectance_above_one() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = 1.2");
+    expect_bad(
+        "reflectance-above-one",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "reflectance"), "materials.white.reflectance"),
+            "reflectance must lie in [0, 1] at every wavelength",
+        ],
+    );
+}
+
+#[test]
+fn reflectance_table_above_one() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { table = [[400, 0.5], [700, 1.5]] }");
+    expect_bad(
+        "reflectance-table-above-one",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "reflectance"), "materials.white.reflectance"),
+            "reflectance must lie in [0, 1] at every wavelength",
+        ],
+    );
+}
+
+#[test]
+fn mirror_reflectance_above_one() {
+    let toml = edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", "type = \"mirror\"\nreflectance = 1.01");
+    expect_bad(
+        "mirror-above-one",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "reflectance"), "materials.white.reflectance"), "reflectance must lie in [0, 1]"],
+    );
+}
+
+#[test]
+fn reflectance_plus_transmittance_above_one() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = 0.5\ntransmittance = 0.6");
+    // The sum belongs to no one key: it is reported at the material's table.
+    expect_bad(
+        "reflectance-plus-transmittance",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "[materials.white]"), "materials.white"), "reflectance + transmittance must not exceed 1"],
+    );
+}
+
+#[test]
+fn ior_zero() {
+    let toml = edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", "type = \"dielectric\"\nior = 0");
+    expect_bad(
+        "ior-zero",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "ior"), "materials.white.ior"), "ior must be positive at every wavelength"],
+    );
+}
+
+#[test]
+fn ior_negative() {
+    let toml = edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", "type = \"dielectric\"\nior = -1.5");
+    expect_bad(
+        "ior-negative",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "ior"), "materials.white.ior"), "must not be negative, found -1.5"],
+    );
+}
+
+#[test]
+fn cauchy_ior_not_positive() {
+    let toml =
+        edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", "type = \"dielectric\"\nior = { cauchy = [-1.0, 0.0] }");
+    expect_bad(
+        "ior-cauchy",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "ior"), "materials.white.ior"), "ior must be positive at every wavelength"],
+    );
+}
+
+#[test]
+fn negative_power() {
+    let toml = edit(BASE, "power_w = 10", "power_w = -10");
+    expect_bad(
+        "power-negative",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "power_w"), "lights[0].power_w"), "power must be positive, found -10"],
+    );
+}
+
+#[test]
+fn zero_power() {
+    let toml = edit(BASE, "power_w = 10", "power_w = 0");
+    expect_bad(
+        "power-zero",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "power_w"), "lights[0].power_w"), "power must be positive, found 0"],
+    );
+}
+
+#[test]
+fn nan_reflectance() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = nan");
+    expect_bad(
+        "nan",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "reflectance"), "materials.white.reflectance"), "NaN is not a finite number"],
+    );
+}
+
+#[test]
+fn inf_power() {
+    let toml = edit(BASE, "power_w = 10", "power_w = inf");
+    expect_bad("inf", &toml, &[], &[&at(line_of(&toml, "power_w"), "lights[0].power_w"), "inf is not a finite number"]);
+}
+
+#[test]
+fn nan_in_a_corner() {
+    let toml = edit(BASE, "[0, 0, 1], [1, 0, 1]", "[0, nan, 1], [1, 0, 1]");
+    expect_bad(
+        "nan-corner",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "nan"), "surfaces[0].shape.corners[1][1]"), "NaN is not a finite number"],
+    );
+}
+
+#[test]
+fn minus_inf_in_a_spectrum_table() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { table = [[400, 0.5], [-inf, 0.5]] }");
+    expect_bad(
+        "minus-inf-table",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "reflectance"), "materials.white.reflectance.table[1][0]"), "-inf is not a finite number"],
+    );
+}
+
+// ---------------------------------------------------------------- spectra
+
+#[test]
+fn spectrum_table_not_sorted() {
+    // One row per line, so the line number tells which row is meant.
+    let toml =
+        edit(BASE, "reflectance = 0.5", "reflectance = { table = [\n  [400, 0.2],\n  [700, 0.3],\n  [600, 0.4],\n] }");
+    expect_bad(
+        "table-unsorted",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "[600, 0.4]"), "materials.white.reflectance.table[2]"),
+            "wavelengths must be sorted and strictly increasing: 600 nm follows 700 nm",
+        ],
+    );
+}
+
+#[test]
+fn spectrum_table_negative_value() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { table = [\n  [400, 0.2],\n  [700, -0.1],\n] }");
+    expect_bad(
+        "table-negative",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "[700, -0.1]"), "materials.white.reflectance.table[1]"),
+            "spectrum values must not be negative, found -0.1 at 700 nm",
+        ],
+    );
+}
+
+#[test]
+fn spectrum_table_empty() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { table = [] }");
+    expect_bad(
+        "table-empty",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "reflectance"), "materials.white.reflectance.table"),
+            "a spectrum table needs at least one [wavelength_nm, value] row",
+        ],
+    );
+}
+
+#[test]
+fn spectrum_table_row_not_a_pair() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { table = [[400, 0.5], [700]] }");
+    expect_bad(
+        "table-row",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "reflectance"), "materials.white.reflectance.table[1]"),
+            "expected a [wavelength_nm, value] pair",
+        ],
+    );
+}
+
+#[test]
+fn missing_spectrum_file() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { file = \"spectra/nope.csv\" }");
+    let line = line_of(&toml, "nope.csv");
+    expect_bad(
+        "spectrum-missing",
+        &toml,
+        &[],
+        &[
+            "error: {dir}/spectra/nope.csv: cannot read spectrum file",
+            &format!("(spectrum file named by `materials.white.reflectance.file` at {{scene}}:{line})"),
+        ],
+    );
+}
+
+#[test]
+fn malformed_spectrum_csv() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { file = \"spectra/white.csv\" }");
+    let csv = "wavelength_nm,value\n400,0.5\n\n500,abc\n600,0.4\n";
+    let line = line_of(&toml, "white.csv");
+    expect_bad(
+        "spectrum-malformed",
+        &toml,
+        &[("spectra/white.csv", csv)],
+        &[
+            &format!("error: {{dir}}/spectra/white.csv:{}: ", line_of(csv, "abc")),
+            "expected `wavelength_nm,value` (two finite numbers), found \"500,abc\"",
+            &format!("(spectrum file named by `materials.white.reflectance.file` at {{scene}}:{line})"),
+        ],
+    );
+}
+
+#[test]
+fn spectrum_csv_not_sorted() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = { file = \"spectra/white.csv\" }");
+    let csv = "wavelength_nm,value\n400,0.5\n# a comment\n700,0.5\n600,0.5\n";
+    expect_bad(
+        "spectrum-csv-unsorted",
+        &toml,
+        &[("spectra/white.csv", csv)],
+        &[
+            &format!("error: {{dir}}/spectra/white.csv:{}: ", line_of(csv, "600")),
+            "wavelengths must be sorted and strictly increasing: 600 nm follows 700 nm",
+        ],
+    );
+}
+
+// ---------------------------------------------------------------- meshes and shapes
+
+/// `BASE` with the floor made of the mesh `file`.
+fn mesh_scene(file: &str) -> String {
+    let shape_line = BASE.lines().find(|l| l.starts_with("shape") && l.contains("[0, 0, 0]")).unwrap();
+    edit(BASE, shape_line, &format!("shape = {{ type = \"mesh\", file = \"{file}\" }}"))
+}
+
+#[test]
+fn missing_mesh_file() {
+    let toml = mesh_scene("meshes/nope.obj");
+    let line = line_of(&toml, "nope.obj");
+    expect_bad(
+        "mesh-missing",
+        &toml,
+        &[],
+        &[
+            "error: {dir}/meshes/nope.obj: cannot read mesh file",
+            &format!("(mesh named by `surfaces[0].shape` at {{scene}}:{line})"),
+        ],
+    );
+}
+
+#[test]
+fn obj_bad_vertex() {
+    let toml = mesh_scene("meshes/floor.obj");
+    let obj = "# floor\nv 0 0 0\nv 0 0 1\nv 1 0 x\nv 1 0 0\nf 1 2 3 4\n";
+    let line = line_of(&toml, "floor.obj");
+    expect_bad(
+        "obj-vertex",
+        &toml,
+        &[("meshes/floor.obj", obj)],
+        &[
+            &format!("error: {{dir}}/meshes/floor.obj:{}: malformed vertex", line_of(obj, "1 0 x")),
+            &format!("(mesh named by `surfaces[0].shape` at {{scene}}:{line})"),
+        ],
+    );
+}
+
+#[test]
+fn obj_face_index_out_of_range() {
+    let toml = mesh_scene("meshes/floor.obj");
+    let obj = "v 0 0 0\nv 0 0 1\nv 1 0 1\n\nf 1 2 3\nf 1 3 4\n";
+    expect_bad(
+        "obj-face",
+        &toml,
+        &[("meshes/floor.obj", obj)],
+        &[&format!(
+            "error: {{dir}}/meshes/floor.obj:{}: face index 4 refers to no vertex (3 defined so far)",
+            line_of(obj, "f 1 3 4")
+        )],
+    );
+}
+
+#[test]
+fn obj_without_faces() {
+    let toml = mesh_scene("meshes/floor.obj");
+    let obj = "v 0 0 0\nv 0 0 1\nv 1 0 1\n";
+    expect_bad(
+        "obj-no-faces",
+        &toml,
+        &[("meshes/floor.obj", obj)],
+        &["error: {dir}/meshes/floor.obj: the mesh has no faces with non-zero area"],
+    );
+}
+
+#[test]
+fn degenerate_quad() {
+    // All four corners on one line: zero area.
+    let toml =
+        edit(BASE, "[[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]]", "[[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]]");
+    expect_bad(
+        "degenerate-quad",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "[3, 0, 0]"), "surfaces[0].shape"), "degenerate quad: its corners enclose zero area"],
+    );
+}
+
+#[test]
+fn coordinates_too_far_out() {
+    // Far beyond any real scene; the single-precision BVH used to panic on such geometry.
+    let toml = edit(
+        BASE,
+        "[[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]]",
+        "[[0, 0, 0], [0, 0, 1e20], [1e20, 0, 1e20], [1e20, 0, 0]]",
+    );
+    expect_bad(
+        "far-quad",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "1e20"), "surfaces[0].shape"),
+            "a coordinate reaches 1e20 m; every point must lie within 1e15 m of the origin",
+        ],
+    );
+}
+
+#[test]
+fn light_scaled_too_far_out() {
+    let toml = edit(BASE, "[0, 1, 1]] }", "[0, 1, 1]], transform = { scale = 1e30 } }");
+    expect_bad(
+        "far-light",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "scale"), "lights[0].shape"), "every point must lie within 1e15 m of the origin"],
+    );
+}
+
+#[test]
+fn camera_look_at_equals_position() {
+    let toml = format!("[camera]\nposition = [0.5, 0.5, -2]\nlook_at = [0.5, 0.5, -2]\nfov_deg = 40\n\n{BASE}");
+    expect_bad(
+        "camera-look-at",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "look_at"), "camera.look_at"), "look_at equals position"],
+    );
+}
+
+// ---------------------------------------------------------------- `photon info`
+
+#[test]
+fn info_empty_file() {
+    expect_bad_info("info-empty", "", &[], &["error: {scene}: the scene file is empty"]);
+}
+
+#[test]
+fn info_unknown_material_key() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = 0.5\ncolor = 1");
+    expect_bad_info(
+        "info-unknown-key",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "color"), "materials.white.color"), "unknown key `color`"],
+    );
+}
+
+#[test]
+fn info_reflectance_above_one() {
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = 2");
+    expect_bad_info(
+        "info-reflectance",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "reflectance"), "materials.white.reflectance"), "must lie in [0, 1]"],
+    );
+}
+
+#[test]
+fn info_malformed_obj() {
+    let toml = mesh_scene("meshes/floor.obj");
+    let obj = "v 0 0 0\nv 0 0 1\nv 1 0 1\nf 1 2 0\n";
+    expect_bad_info(
+        "info-obj",
+        &toml,
+        &[("meshes/floor.obj", obj)],
+        &["error: {dir}/meshes/floor.obj:4: face index 0 refers to no vertex"],
+    );
+}
+
+#[test]
+fn info_missing_scene_file() {
+    expect_exit2("info-missing", None, &[], INFO, &["error: {scene}: cannot read the scene file"]);
+}
+
+// ---------------------------------------------------------------- command-line arguments
+
+#[test]
+fn zero_photons() {
+    expect_bad_args("photons-0", &["--photons", "0"], &["--photons must be at least 1"]);
+}
+
+#[test]
+fn zero_threads() {
+    expect_bad_args("threads-0", &["--threads", "0"], &["--threads must be at least 1"]);
+}
+
+#[test]
+fn unknown_flag() {
+    expect_bad_args("unknown-flag", &["--photons", "1000", "--bogus"], &["unexpected argument '--bogus'"]);
+}
+
+#[test]
+fn photons_not_a_number() {
+    expect_bad_args("photons-nan", &["--photons", "many"], &["--photons"]);
+}
+
+#[test]
+fn negative_rel_error() {
+    expect_bad_args(
+        "rel-error",
+        &["--photons", "1000", "--rel-error=-0.1"],
+        &["--rel-error must be a positive number"],
+    );
+}
+
+#[test]
+fn tally_of_an_unknown_surface() {
+    expect_bad_args(
+        "tally",
+        &["--photons", "1000", "--rel-error", "0.1", "--tally", "ceiling"],
+        &["--tally ceiling: no surface of that name; surfaces: floor, lamp"],
+    );
+}
