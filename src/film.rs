@@ -129,6 +129,17 @@ pub struct Image {
     pub batches: u64,
 }
 
+impl Image {
+    /// Mean Y over all pixels and its standard error sqrt(ΣY_var)/n: each photon vertex splats into
+    /// one pixel, so pixel estimates are independent.
+    pub fn mean_y(&self) -> (f64, f64) {
+        let n = self.y_var.len() as f64;
+        let mean = self.xyz.column(1).iter().map(|&y| y as f64).sum::<f64>() / n;
+        let var: f64 = self.y_var.iter().map(|&v| v as f64).sum();
+        (mean, var.sqrt() / n)
+    }
+}
+
 impl Film {
     pub fn new(width: usize, height: usize) -> Self {
         Film {

@@ -105,13 +105,14 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
 
     let result = simulate(&scene, opts, &chosen, &interrupt)?;
     let flux = output::flux(&scene, &result);
-    let info = output::run_info(&scene, &result, &flux);
+    let mut info = output::run_info(&scene, &result, &flux);
     output::write_json(&out_dir, "flux.json", &flux)?;
     output::write_atomic(&out_dir, "flux.csv", output::flux_csv(&flux).as_bytes())?;
     if let Some(film) = &result.film {
         let image = film.image(result.emitted_w);
         output::write_exr(&out_dir, &image)?;
         output::write_png(&out_dir, &image)?;
+        info.image_mean_y = Some(image.mean_y());
     }
     output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {
@@ -130,12 +131,19 @@ fn info(scene_path: &Path) -> Result<(), Error> {
 fn describe(scene: &Scene) -> String {
     let mut s = format!("scene {}\n", scene.path.display());
     s.push_str(&format!("surfaces ({}):\n", scene.surfaces.len()));
-    for surf in &scene.surfaces {
-        let m = &scene.materials[surf.material];
+    let name_w =
+        scene.surfaces.iter().map(|x| x.name.len()).chain(scene.lights.iter().map(|l| l.name.len())).max().unwrap_or(4);
+    let materials: Vec<String> = scene
+        .surfaces
+        .iter()
+        .map(|x| format!("{} ({})", scene.materials[x.material].name, scene.materials[x.material].material.kind()))
+        .collect();
+    let mat_w = materials.iter().map(String::len).max().unwrap_or(8);
+    for (surf, material) in scene.surfaces.iter().zip(&materials) {
         s.push_str(&format!(
-            "  {:<16} {:<12} {:>8} triangles  {:>12.6} m²{}\n",
+            "  {:<name_w$}  {:<mat_w$}  {:>8} triangles  {:>12.6} m²{}\n",
             surf.name,
-            format!("{} ({})", m.name, m.material.kind()),
+            material,
             surf.triangles,
             surf.area_m2,
             if surf.light.is_some() { "  [light]" } else { "" }
@@ -151,7 +159,13 @@ fn describe(scene: &Scene) -> String {
                 format!("point at [{}, {}, {}] m", position.x, position.y, position.z)
             }
         };
-        s.push_str(&format!("  {:<16} {:>12.6} W  {}  {}\n", l.name, l.power_w, l.distribution.describe(), shape));
+        s.push_str(&format!(
+            "  {:<name_w$}  {:>12.6} W  {}  {}\n",
+            l.name,
+            l.power_w,
+            l.distribution.describe(),
+            shape
+        ));
     }
     s.push_str(&format!("triangles: {}\n", scene.geometry.len()));
     s.push_str(&format!("total power: {:.6} W\n", scene.total_power_w()));

@@ -48,6 +48,9 @@ pub struct RunInfo {
     /// Per surface, the figure of merit 1/(rel_error² · seconds): the accuracy a second buys.
     /// Here rather than in flux.json, whose numbers must not depend on timing.
     pub fom: Vec<(String, f64)>,
+    /// Mean Y over the image and its standard error, when an image was made.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image_mean_y: Option<(f64, f64)>,
 }
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
@@ -103,6 +106,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         batch_photons: BATCH_PHOTONS,
         max_bounces: scene.simulation.max_bounces,
         fom,
+        image_mean_y: None,
         mean_scatterings: if photons > 0 { r.tallies.scatterings as f64 / photons as f64 } else { 0.0 },
     }
 }
@@ -169,6 +173,9 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
         l.truncated_w,
         l.relative_residual()
     ));
+    if let Some((y, se)) = info.image_mean_y {
+        s.push_str(&format!("image: mean Y {y:.6e} ± {se:.2e} W m^-2 sr^-1 nm^-1\n"));
+    }
     s.push_str(&format!(
         "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport), stopped by {:?}\n",
         info.photons, info.wall_seconds, info.photons_per_second, info.threads, info.transport, info.stop_reason

@@ -142,3 +142,31 @@ fn rel_error_stop_is_reproducible_from_the_recorded_photon_count() {
     std::fs::remove_dir_all(&out).unwrap();
     std::fs::remove_dir_all(&again).unwrap();
 }
+
+#[test]
+fn ctrl_c_writes_the_finished_batches_with_stop_reason_interrupted() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furnace.toml");
+    let out = temp_dir("interrupt");
+    let mut child = photon()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(["--photons", "1000000000", "--quiet"])
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let killed = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "an interrupted run still succeeds: {status:?}");
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["stop_reason"], "interrupted");
+    let photons = run["photons"].as_u64().unwrap();
+    assert!(photons > 0 && photons < 1_000_000_000 && photons % 16_384 == 0, "{photons}");
+    let flux: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
+    assert_eq!(flux["photons"].as_u64().unwrap(), photons);
+    assert_eq!(flux["ledger"]["absorbed_w"].as_f64().unwrap(), 1.0);
+    std::fs::remove_dir_all(&out).unwrap();
+}
