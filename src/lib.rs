@@ -18,3 +18,4 @@ pub mod scene;
 pub mod spectrum;
 pub mod tally;
 pub mod transport;
+pub mod validate;

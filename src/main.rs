@@ -54,6 +54,14 @@ enum Command {
     },
     /// Load and check a scene; print its surfaces, lights, triangle count, power and effects.
     Info { scene: PathBuf },
+    /// Run the built-in closed-form cases; exit 0 only if every case passes.
+    Validate {
+        /// Smaller runs (under a minute on 2 cores) with looser error targets.
+        #[arg(long)]
+        quick: bool,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -81,6 +89,7 @@ fn main() -> ExitCode {
             run(&scene, out, &opts, quiet)
         }
         Command::Info { scene } => info(&scene),
+        Command::Validate { quick, threads } => validate(quick, threads),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -92,7 +101,7 @@ fn main() -> ExitCode {
 }
 
 fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) -> Result<(), Error> {
-    let mut scene = scene::load(scene_path)?;
+    let mut scene = load_warn(scene_path)?;
     let chosen = apply_options(&mut scene, opts)?;
     // The scene and options are sound: only now is anything created on disk.
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
@@ -122,8 +131,31 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
     Ok(())
 }
 
+fn validate(quick: bool, threads: Option<usize>) -> Result<(), Error> {
+    if threads == Some(0) {
+        return Err(Error::Usage("--threads must be at least 1".into()));
+    }
+    let start = std::time::Instant::now();
+    let cases = photon::validate::run_all(quick, threads)?;
+    print!("{}", photon::validate::report(&cases, start.elapsed().as_secs_f64()));
+    if cases.iter().all(|c| c.passed()) {
+        Ok(())
+    } else {
+        Err(Error::Other("some validation cases failed".into()))
+    }
+}
+
+/// Loads a scene and prints its warnings to stderr.
+fn load_warn(path: &Path) -> Result<Scene, Error> {
+    let scene = scene::load(path)?;
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(scene)
+}
+
 fn info(scene_path: &Path) -> Result<(), Error> {
-    let scene = scene::load(scene_path)?;
+    let scene = load_warn(scene_path)?;
     print!("{}", describe(&scene));
     Ok(())
 }

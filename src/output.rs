@@ -45,6 +45,7 @@ pub struct RunInfo {
     pub batch_photons: u64,
     pub max_bounces: u32,
     pub mean_scatterings: f64,
+    pub mean_scatterings_stderr: f64,
     /// Per surface, the figure of merit 1/(rel_error² · seconds): the accuracy a second buys.
     /// Here rather than in flux.json, whose numbers must not depend on timing.
     pub fom: Vec<(String, f64)>,
@@ -107,7 +108,8 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         max_bounces: scene.simulation.max_bounces,
         fom,
         image_mean_y: None,
-        mean_scatterings: if photons > 0 { r.tallies.scatterings as f64 / photons as f64 } else { 0.0 },
+        mean_scatterings: r.tallies.mean_scatterings().0,
+        mean_scatterings_stderr: r.tallies.mean_scatterings().1,
     }
 }
 

@@ -77,8 +77,9 @@ pub struct Tallies {
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
-    /// Scattering events, for the mean path length.
+    /// Scattering events per history: Σk and Σk², for the mean path length and its error.
     pub scatterings: u64,
+    pub scatterings_sq: u64,
 }
 
 impl Tallies {
@@ -90,6 +91,7 @@ impl Tallies {
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
+            scatterings_sq: 0,
         }
     }
 
@@ -105,6 +107,7 @@ impl Tallies {
         self.escaped += b.escaped;
         self.truncated += b.truncated;
         self.scatterings += b.scatterings;
+        self.scatterings_sq += b.scatterings_sq;
     }
 
     /// Power per unit of photon weight: every photon is born with weight 1 and power Φ/N.
@@ -114,6 +117,11 @@ impl Tallies {
         } else {
             emitted_w / self.photons as f64
         }
+    }
+
+    /// Mean scatterings per photon and its standard error.
+    pub fn mean_scatterings(&self) -> (f64, f64) {
+        Moments { sum: self.scatterings as f64, sum_sq: self.scatterings_sq as f64 }.estimate(self.photons, 1.0)
     }
 
     pub fn ledger(&self, emitted_w: f64) -> Ledger {

@@ -123,6 +123,7 @@ impl Kernel<'_> {
                 }
             }
             out.scatterings += scatterings as u64;
+            out.scatterings_sq += (scatterings as u64).pow(2);
             incident.flush(&mut out.incident);
             absorbed.flush(&mut out.absorbed);
         }

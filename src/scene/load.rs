@@ -258,6 +258,7 @@ impl<'s> Loader<'s> {
         });
 
         // Triangulate: surfaces first, then area lights, each triangle tagged with its surface.
+        let mut warnings = Vec::new();
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
@@ -283,7 +284,7 @@ impl<'s> Loader<'s> {
             };
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
-            let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line)?;
+            let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
             self.check_extent(&t, unit_m, &key, e.shape_line)?;
             add_surface(&e.name, e.material, t, None);
         }
@@ -297,7 +298,7 @@ impl<'s> Loader<'s> {
                     (LightShape::Point { position: p, axis }, 0.0)
                 }
                 other => {
-                    let t = shapes::triangulate(other, self.src, &key, spec.shape_line)?;
+                    let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
                     self.check_extent(&t, unit_m, &key, spec.shape_line)?;
                     let (surface, area) = add_surface(&spec.name, spec.material, t, Some(i));
                     (LightShape::Area { surface }, area)
@@ -330,7 +331,17 @@ impl<'s> Loader<'s> {
             simplify_material(&mut m.material, range);
         }
         let geometry = Geometry::build(tris, tri_surface);
-        Ok(Scene { path: path.to_path_buf(), simulation, materials, surfaces, lights, camera, geometry, effects })
+        Ok(Scene {
+            path: path.to_path_buf(),
+            simulation,
+            materials,
+            surfaces,
+            lights,
+            camera,
+            geometry,
+            effects,
+            warnings,
+        })
     }
 
     /// Rejects geometry too far out for the single-precision BVH, whose bounds and areas

@@ -14,6 +14,7 @@ use crate::geometry::Geometry;
 use crate::spectrum::Spectrum;
 
 pub use load::{load, load_str, read_spectrum_csv};
+pub use shapes::icosphere;
 
 #[derive(Clone, Debug)]
 pub struct Simulation {
@@ -169,6 +170,8 @@ pub struct Scene {
     pub camera: Option<Camera>,
     pub geometry: Geometry,
     pub effects: Effects,
+    /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
+    pub warnings: Vec<String>,
 }
 
 impl Scene {

@@ -8,12 +8,15 @@ use glam::DVec3;
 
 use crate::error::InputError;
 
-pub fn read_obj(path: &Path) -> Result<Vec<[DVec3; 3]>, InputError> {
+/// Reads the triangles of an OBJ file. Zero-area triangles (repeated or collinear vertices) can
+/// never be hit: each is skipped with a warning naming the file, the line and the face.
+pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<[DVec3; 3]>, InputError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| InputError::new(path, "", None, format!("cannot read mesh file: {e}")))?;
     let err = |line: usize, m: String| InputError::new(path, "", Some(line), m);
     let mut verts: Vec<DVec3> = Vec::new();
     let mut tris: Vec<[DVec3; 3]> = Vec::new();
+    let mut face = 0usize;
     for (i, raw) in text.lines().enumerate() {
         let line_no = i + 1;
         let line = raw.split('#').next().unwrap_or("").trim();
@@ -47,11 +50,16 @@ pub fn read_obj(path: &Path) -> Result<Vec<[DVec3; 3]>, InputError> {
                 if idx.len() < 3 {
                     return Err(err(line_no, format!("a face needs at least 3 vertices, found {}", idx.len())));
                 }
+                face += 1;
                 for j in 1..idx.len() - 1 {
                     let t = [verts[idx[0]], verts[idx[j]], verts[idx[j + 1]]];
-                    // Zero-area triangles can never be hit; they are dropped.
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
                         tris.push(t);
+                    } else {
+                        warnings.push(format!(
+                            "{}:{line_no}: face {face} has zero area (repeated or collinear vertices); skipped",
+                            path.display()
+                        ));
                     }
                 }
             }

@@ -159,7 +159,13 @@ fn twice_area(t: &[DVec3; 3]) -> f64 {
 }
 
 /// Triangles of a shape (not a point), transformed, in scene units.
-pub fn triangulate(shape: &ShapeSpec, src: &Source, key: &str, line: usize) -> Result<Vec<[DVec3; 3]>, InputError> {
+pub fn triangulate(
+    shape: &ShapeSpec,
+    src: &Source,
+    key: &str,
+    line: usize,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<[DVec3; 3]>, InputError> {
     let (raw, transform): (Vec<[DVec3; 3]>, &Transform) = match shape {
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
@@ -197,7 +203,7 @@ pub fn triangulate(shape: &ShapeSpec, src: &Source, key: &str, line: usize) -> R
         }
         ShapeSpec::Box { min, max, transform } => (box_triangles(DVec3::from(*min), DVec3::from(*max)), transform),
         ShapeSpec::Mesh { file, key_line, transform } => {
-            let tris = obj::read_obj(file).map_err(|mut e| {
+            let tris = obj::read_obj(file, warnings).map_err(|mut e| {
                 e.message = format!("{} (mesh named by `{key}` at {}:{key_line})", e.message, src.file.display());
                 e
             })?;
