@@ -48,9 +48,11 @@ impl Cmf {
 
     /// ∫ s(λ)·(x̄, ȳ, z̄)(λ) dλ over `range`, trapezoid on the 1 nm grid merged with s's breakpoints.
     pub fn integrate(&self, s: &Spectrum, range: (f64, f64)) -> [f64; 3] {
+        // Integrate over the spectrum's support only (see `Spectrum::breakpoints`).
         let mut xs = s.breakpoints(range);
-        let mut x = range.0.floor() + 1.0;
-        while x < range.1 {
+        let (lo, hi) = (xs[0], xs[xs.len() - 1]);
+        let mut x = lo.floor() + 1.0;
+        while x < hi {
             xs.push(x);
             x += 1.0;
         }

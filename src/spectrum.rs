@@ -61,8 +61,7 @@ impl Spectrum {
 
     /// Smallest and largest value over `range` (exact for tables; sampled at 1 nm otherwise).
     pub fn min_max_over(&self, range: (f64, f64)) -> (f64, f64) {
-        let mut lo = f64::INFINITY;
-        let mut hi = f64::NEG_INFINITY;
+        let (mut lo, mut hi) = if self.has_gaps(range) { (0.0, 0.0) } else { (f64::INFINITY, f64::NEG_INFINITY) };
         for x in self.breakpoints(range) {
             let v = self.eval(x);
             lo = lo.min(v);
@@ -71,10 +70,19 @@ impl Spectrum {
         (lo, hi)
     }
 
-    /// Wavelengths at which the spectrum is exactly linear in between: the range ends, the
-    /// table's own points inside the range, or a 1 nm grid for analytic spectra.
+    /// Wavelengths at which the spectrum is exactly linear in between, spanning its support within
+    /// `range`: a table is zero outside its own points, so its span is clipped to them (a trapezoid
+    /// across the jump at a table's end would invent power that is not there). Analytic spectra
+    /// get a 1 nm grid.
     pub fn breakpoints(&self, range: (f64, f64)) -> Vec<f64> {
-        let (a, b) = range;
+        let (mut a, mut b) = range;
+        if let Spectrum::Table(points) = self {
+            a = a.max(points[0].0);
+            b = b.min(points[points.len() - 1].0);
+            if a >= b {
+                return vec![range.0, range.1];
+            }
+        }
         let mut xs = vec![a];
         match self {
             Spectrum::Constant(_) => {}
@@ -89,6 +97,14 @@ impl Spectrum {
         }
         xs.push(b);
         xs
+    }
+
+    /// True when a table leaves part of `range` uncovered, where it is zero.
+    pub fn has_gaps(&self, range: (f64, f64)) -> bool {
+        match self {
+            Spectrum::Table(points) => points[0].0 > range.0 || points[points.len() - 1].0 < range.1,
+            _ => false,
+        }
     }
 
     /// ∫ over `range` of the spectrum, in value·nm (trapezoid between breakpoints: exact for tables).
@@ -171,6 +187,11 @@ mod tests {
         assert_eq!(s.eval(399.0), 0.0);
         assert_eq!(s.eval(501.0), 0.0);
         assert_eq!(s.integral((400.0, 500.0)), 200.0);
+        // A table narrower than the range is zero outside its points: no ramp up to them.
+        assert_eq!(s.integral((360.0, 830.0)), 200.0);
+        assert_eq!(s.min_max_over((360.0, 830.0)), (0.0, 3.0));
+        let sampler = SpectralSampler::new(&s, (360.0, 830.0)).unwrap();
+        assert!((0..100).all(|k| (400.0..=500.0).contains(&sampler.sample(k as f64 / 100.0))));
     }
 
     #[test]

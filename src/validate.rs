@@ -670,3 +670,42 @@ fn lecture_integral(ctx: &Ctx, out: &mut Vec<CaseResult>) {
         note: "IS < uniform, stratified < uniform, stratified IS < IS".into(),
     });
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn view_factor_formulas_match_tabulated_values() {
+        // Tabulated in Howell's catalogue and in Incropera's Fig. 13.4–13.6.
+        assert!((vf_parallel_rectangles(1.0, 1.0, 1.0) - 0.19982).abs() < 1e-4);
+        assert!((vf_perpendicular_rectangles(1.0, 1.0, 1.0) - 0.20004).abs() < 1e-4);
+        assert!((vf_coaxial_disks(1.0, 1.0, 1.0) - 0.38197).abs() < 1e-4);
+        // Reciprocity A1·F12 = A2·F21 for the perpendicular pair.
+        let (w, h, l) = (0.6, 0.8, 1.0);
+        assert!(
+            (w * l * vf_perpendicular_rectangles(w, h, l) - h * l * vf_perpendicular_rectangles(h, w, l)).abs() < 1e-12
+        );
+    }
+
+    #[test]
+    fn fresnel_matches_normal_incidence_and_brewster() {
+        assert!((fresnel_unpolarised(1.0, 1.5, 0.0) - 0.04).abs() < 1e-12);
+        // At Brewster's angle atan(n) the p-polarised reflectance vanishes: R = Rs/2.
+        let tb = 1.5f64.atan();
+        let (ci, ct) = (tb.cos(), (tb.sin() / 1.5).asin().cos());
+        let rs = ((ci - 1.5 * ct) / (ci + 1.5 * ct)).powi(2);
+        assert!((fresnel_unpolarised(1.0, 1.5, tb) - rs / 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn quad_facing_has_the_requested_normal() {
+        for n in [DVec3::X, DVec3::NEG_Y, DVec3::new(0.3, -0.4, 0.5).normalize()] {
+            let text = quad_facing(DVec3::new(1.0, 2.0, 3.0), n, 0.5, 0.25);
+            let v: Vec<f64> = text.replace(['[', ']'], "").split(',').map(|x| x.trim().parse().unwrap()).collect();
+            let p = |i: usize| DVec3::new(v[3 * i], v[3 * i + 1], v[3 * i + 2]);
+            let normal = (p(1) - p(0)).cross(p(2) - p(0)).normalize();
+            assert!((normal - n).length() < 1e-12, "{normal} vs {n}");
+        }
+    }
+}

@@ -165,6 +165,12 @@ impl<'s, 'v> Table<'s, 'v> {
         self.src.error(self.path, Some(self.start), message)
     }
 
+    /// An error at `key`'s value (or at the table when the key is absent).
+    pub fn err_at(&self, key: &str, message: impl Into<String>) -> InputError {
+        let byte = self.table.get(key).map_or(self.start, |v| v.span().start);
+        self.src.error(&child_path(self.path, key), Some(byte), message)
+    }
+
     /// Rejects any key not in `allowed`, naming the allowed ones.
     pub fn allow(&self, allowed: &[&str]) -> R<()> {
         for (key, value) in self.table.iter() {

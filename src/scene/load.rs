@@ -20,6 +20,9 @@ const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surf
 /// the BVH's single-precision bounds and surface areas cannot overflow.
 const MAX_COORD_M: f64 = 1e15;
 
+/// Largest film (16.7 megapixels): its f64 accumulators then take 0.5 GiB.
+const MAX_PIXELS: u64 = 4096 * 4096;
+
 /// Loads and checks a scene file.
 pub fn load(path: &Path) -> Result<Scene, Error> {
     let text = std::fs::read_to_string(path)
@@ -157,33 +160,36 @@ impl<'s> Loader<'s> {
                     (true, false) => {
                         let p = t.req_f64("power_w")?;
                         if p <= 0.0 {
-                            return Err(t
-                                .with("power_w", |n| Ok(n.err(format!("power must be positive, found {p}"))))?
-                                .unwrap());
+                            return Err(t.err_at("power_w", format!("power must be positive, found {p}")));
                         }
                         PowerSpec::Watts(p)
                     }
                     (false, true) => {
                         let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
                         if s.integral(range) <= 0.0 {
-                            return Err(t
-                                .with("radiance", |n| {
-                                    Ok(n.err("radiance must be positive somewhere in the wavelength range"))
-                                })?
-                                .unwrap());
+                            return Err(
+                                t.err_at("radiance", "radiance must be positive somewhere in the wavelength range")
+                            );
                         }
                         PowerSpec::Radiance(s)
                     }
                 };
+                if matches!(power, PowerSpec::Radiance(_)) && t.has("spectrum") {
+                    return Err(t.err_at(
+                        "spectrum",
+                        "`radiance` is already a spectrum (a number or a spectrum table): drop `spectrum`, or give `power_w`",
+                    ));
+                }
                 let spectrum =
                     t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
                 if let (PowerSpec::Watts(_), true) = (&power, spectrum.integral(range) <= 0.0) {
-                    return Err(t
-                        .with("spectrum", |n| Ok(n.err("the spectrum is zero over the whole wavelength range")))?
-                        .unwrap());
+                    return Err(t.err_at("spectrum", "the spectrum is zero over the whole wavelength range"));
                 }
-                let distribution =
-                    t.with("distribution", |n| self.distribution(n))?.unwrap_or(Distribution::Lambertian);
+                let is_point = matches!(shape, ShapeSpec::Point { .. });
+                // SPEC: area lights default to lambertian; a point light has no surface to be
+                // Lambertian about, so it defaults to isotropic.
+                let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
+                let distribution = t.with("distribution", |n| self.distribution(n))?.unwrap_or(default_distribution);
                 let axis = t.with("direction", |n| {
                     let d = DVec3::from(n.vec3()?);
                     if d.length() == 0.0 {
@@ -191,26 +197,20 @@ impl<'s> Loader<'s> {
                     }
                     Ok(d.normalize())
                 })?;
-                let is_point = matches!(shape, ShapeSpec::Point { .. });
                 if !is_point && axis.is_some() {
-                    return Err(t
-                        .with("direction", |n| {
-                            Ok(n.err("`direction` is for point lights; an area light emits about its front normal"))
-                        })?
-                        .unwrap());
+                    return Err(t.err_at(
+                        "direction",
+                        "`direction` is for point lights; an area light emits about its front normal",
+                    ));
                 }
                 if is_point {
                     if matches!(power, PowerSpec::Radiance(_)) {
-                        return Err(t
-                            .with("radiance", |n| {
-                                Ok(n.err("a point light has no area, so it needs `power_w`, not `radiance`"))
-                            })?
-                            .unwrap());
+                        return Err(
+                            t.err_at("radiance", "a point light has no area, so it needs `power_w`, not `radiance`")
+                        );
                     }
                     if t.has("material") {
-                        return Err(t
-                            .with("material", |n| Ok(n.err("a point light is not a surface and takes no material")))?
-                            .unwrap());
+                        return Err(t.err_at("material", "a point light is not a surface and takes no material"));
                     }
                     if distribution != Distribution::Isotropic && axis.is_none() {
                         return Err(t.err(format!(
@@ -221,12 +221,7 @@ impl<'s> Loader<'s> {
                 }
                 if let PowerSpec::Radiance(_) = power {
                     if distribution == Distribution::Collimated {
-                        return Err(t
-                            .with(
-                                "radiance",
-                                |n| Ok(n.err("a collimated beam has no finite radiance: give `power_w`")),
-                            )?
-                            .unwrap());
+                        return Err(t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w`"));
                     }
                 }
                 Ok(LightSpec {
@@ -267,8 +262,7 @@ impl<'s> Loader<'s> {
             |name: &str, material: usize, tri_list: Vec<[DVec3; 3]>, light: Option<usize>| -> (usize, f64) {
                 let id = surfaces.len() as u32;
                 let mut area = 0.0;
-                for t in &tri_list {
-                    let m = t.map(|v| v * unit_m);
+                for m in &tri_list {
                     area += 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length();
                     tris.push(m.map(|v| v.as_vec3a()));
                     tri_surface.push(id);
@@ -285,10 +279,11 @@ impl<'s> Loader<'s> {
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
             let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
-            self.check_extent(&t, unit_m, &key, e.shape_line)?;
+            let t = self.in_metres(t, unit_m, &key, e.shape_line, &mut warnings)?;
             add_surface(&e.name, e.material, t, None);
         }
         let mut lights = Vec::with_capacity(light_specs.len());
+        let mut light_lines = Vec::with_capacity(light_specs.len());
         for (i, spec) in light_specs.into_iter().enumerate() {
             let key = child_path(&spec.path, "shape");
             let (shape, area_m2) = match &spec.shape {
@@ -299,7 +294,7 @@ impl<'s> Loader<'s> {
                 }
                 other => {
                     let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
-                    self.check_extent(&t, unit_m, &key, spec.shape_line)?;
+                    let t = self.in_metres(t, unit_m, &key, spec.shape_line, &mut warnings)?;
                     let (surface, area) = add_surface(&spec.name, spec.material, t, Some(i));
                     (LightShape::Area { surface }, area)
                 }
@@ -318,6 +313,7 @@ impl<'s> Loader<'s> {
                     (area_m2 * projected_sr * radiance.integral(range), radiance)
                 }
             };
+            light_lines.push(spec.shape_line);
             lights.push(Light { name: spec.name, shape, power_w, spectrum, distribution: spec.distribution });
         }
 
@@ -329,6 +325,28 @@ impl<'s> Loader<'s> {
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
+        }
+        // A point light on a surface would shoot half its rays from inside the surface's rounding
+        // band, where no hit can be resolved: they would leak through. Refuse it.
+        for (i, (l, spec_line)) in lights.iter().zip(&light_lines).enumerate() {
+            if let LightShape::Point { position, .. } = l.shape {
+                for (t, &s) in tris.iter().zip(&tri_surface) {
+                    let tri = t.map(|v| v.as_dvec3());
+                    let scale = tri.iter().chain([&position]).map(|v| v.abs().max_element()).fold(0.0, f64::max);
+                    let d = point_triangle_distance(position, &tri);
+                    if d <= 1e-6 * scale {
+                        return Err(InputError::new(
+                            self.src.file,
+                            &child_path(&index_path("lights", i), "shape"),
+                            Some(*spec_line),
+                            format!(
+                                "point light \"{}\" lies on surface \"{}\" ({d:.1e} m away): move it off the surface",
+                                l.name, surfaces[s as usize].name
+                            ),
+                        ));
+                    }
+                }
+            }
         }
         let geometry = Geometry::build(tris, tri_surface);
         Ok(Scene {
@@ -344,19 +362,43 @@ impl<'s> Loader<'s> {
         })
     }
 
-    /// Rejects geometry too far out for the single-precision BVH, whose bounds and areas
-    /// would overflow (it panics on them).
-    fn check_extent(&self, tris: &[[DVec3; 3]], unit_m: f64, key: &str, line: usize) -> R<()> {
-        let far = tris.iter().flatten().map(|v| v.abs().max_element() * unit_m).find(|c| !(*c <= MAX_COORD_M));
-        match far {
-            Some(c) => Err(InputError::new(
-                self.src.file,
-                key,
-                Some(line),
-                format!("a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin"),
-            )),
-            None => Ok(()),
+    /// Scales a shape's triangles to metres and checks them at the single precision the tracer
+    /// uses: coordinates too far out for the BVH's f32 bounds are an error (it would panic on
+    /// them), and a triangle too thin to have an f32 normal is dropped with a warning (it would
+    /// give NaN directions); a shape left with no triangle is an error.
+    fn in_metres(
+        &self,
+        tris: Vec<[DVec3; 3]>,
+        unit_m: f64,
+        key: &str,
+        line: usize,
+        warnings: &mut Vec<String>,
+    ) -> R<Vec<[DVec3; 3]>> {
+        let err = |m: String| InputError::new(self.src.file, key, Some(line), m);
+        let tris: Vec<[DVec3; 3]> = tris.into_iter().map(|t| t.map(|v| v * unit_m)).collect();
+        if let Some(c) = tris.iter().flatten().map(|v| v.abs().max_element()).find(|c| !(*c <= MAX_COORD_M)) {
+            return Err(err(format!("a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin")));
         }
+        let total = tris.len();
+        let kept: Vec<[DVec3; 3]> = tris
+            .into_iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|v| v.as_vec3a());
+                let n = (b - a).cross(c - a);
+                n.is_finite() && n.length_squared() > 0.0 && n.normalize().is_finite()
+            })
+            .collect();
+        if kept.is_empty() {
+            return Err(err("the shape has no area at single precision: it is too thin for its distance from the origin".into()));
+        }
+        if kept.len() < total {
+            warnings.push(format!(
+                "{}:{line}: `{key}`: {} of {total} triangles are too thin to have a normal at single precision; skipped",
+                self.src.file.display(),
+                total - kept.len()
+            ));
+        }
+        Ok(kept)
     }
 
     fn unit(&self, root: Table<'s, '_>) -> R<f64> {
@@ -386,7 +428,7 @@ impl<'s> Loader<'s> {
             t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm"])?;
             if let Some(p) = t.with("photons", |n| n.u64())? {
                 if p == 0 {
-                    return Err(t.with("photons", |n| Ok(n.err("photons must be at least 1")))?.unwrap());
+                    return Err(t.err_at("photons", "photons must be at least 1"));
                 }
                 sim.photons = p;
                 sim.photons_given = true;
@@ -399,8 +441,8 @@ impl<'s> Loader<'s> {
             }
             if let Some(r) = t.with("wavelength_range_nm", |n| {
                 let items = n.each(|x| x.f64())?;
-                if items.len() != 2 || !(items[0] > 0.0 && items[0] < items[1]) {
-                    return Err(n.err("expected [min, max] with 0 < min < max (nm)"));
+                if items.len() != 2 || !(items[0] >= 1.0 && items[0] < items[1] && items[1] <= 100_000.0) {
+                    return Err(n.err("expected [min, max] in nm with 1 <= min < max <= 100000"));
                 }
                 Ok((items[0], items[1]))
             })? {
@@ -414,7 +456,7 @@ impl<'s> Loader<'s> {
     fn name(&self, t: Table<'s, '_>) -> R<String> {
         let name = t.req_str("name")?;
         if name.trim().is_empty() {
-            return Err(t.with("name", |n| Ok(n.err("name must not be empty")))?.unwrap());
+            return Err(t.err_at("name", "name must not be empty"));
         }
         Ok(name)
     }
@@ -490,13 +532,10 @@ impl<'s> Loader<'s> {
                 let absorption_per_m = t.with("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
                 Ok(Material::Dielectric { ior, outside_ior, absorption_per_m })
             }
-            other => Err(t
-                .with("type", |n| {
-                    Ok(n.err(format!(
-                        "unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric"
-                    )))
-                })?
-                .unwrap()),
+            other => Err(t.err_at(
+                "type",
+                format!("unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric"),
+            )),
         }
     }
 
@@ -530,26 +569,25 @@ impl<'s> Loader<'s> {
         let up = DVec3::from(t.vec3("up")?.unwrap_or([0.0, 1.0, 0.0]));
         let forward = look_at - position;
         if forward.length() == 0.0 {
-            return Err(t
-                .with("look_at", |n| Ok(n.err("look_at equals position: the camera has a zero-length view direction")))?
-                .unwrap());
+            return Err(t.err_at("look_at", "look_at equals position: the camera has a zero-length view direction"));
         }
         if up.length() == 0.0 || forward.normalize().cross(up.normalize()).length() < 1e-9 {
-            return Err(t
-                .with("up", |n| Ok(n.err("up must be non-zero and not parallel to the view direction")))?
-                .unwrap_or_else(|| t.err("the default up [0, 1, 0] is parallel to the view direction: give `up`")));
+            let message = if t.has("up") {
+                "up must be non-zero and not parallel to the view direction"
+            } else {
+                "the default up [0, 1, 0] is parallel to the view direction: give `up`"
+            };
+            return Err(t.err_at("up", message));
         }
         let fov_deg = t.req_f64("fov_deg")?;
         if !(fov_deg > 0.0 && fov_deg < 180.0) {
-            return Err(t
-                .with("fov_deg", |n| Ok(n.err(format!("fov_deg must be in (0, 180), found {fov_deg}"))))?
-                .unwrap());
+            return Err(t.err_at("fov_deg", format!("fov_deg must be in (0, 180), found {fov_deg}")));
         }
         let resolution = t
             .with("resolution", |n| {
                 let r = n.each(|x| x.u64())?;
-                if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0] > 65536 || r[1] > 65536 {
-                    return Err(n.err("expected [width, height], each between 1 and 65536"));
+                if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0] * r[1] > MAX_PIXELS {
+                    return Err(n.err(format!("expected [width, height] of at least 1 pixel each and at most {MAX_PIXELS} pixels in all")));
                 }
                 Ok([r[0] as u32, r[1] as u32])
             })?
@@ -584,9 +622,7 @@ impl<'s> Loader<'s> {
             "blackbody_k" => {
                 let k = t.req_f64("blackbody_k")?;
                 if k <= 0.0 {
-                    return Err(t
-                        .with("blackbody_k", |n| Ok(n.err(format!("temperature must be positive, found {k}"))))?
-                        .unwrap());
+                    return Err(t.err_at("blackbody_k", format!("temperature must be positive, found {k}")));
                 }
                 Ok(Spectrum::Blackbody { kelvin: k })
             }
@@ -722,5 +758,54 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
                 simplify(a, range);
             }
         }
+    }
+}
+
+/// Distance from `p` to the closest point of triangle `t` (Ericson, Real-Time Collision
+/// Detection, §5.1.5: classify p against the triangle's Voronoi regions).
+fn point_triangle_distance(p: DVec3, t: &[DVec3; 3]) -> f64 {
+    let [a, b, c] = *t;
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return ap.length();
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return bp.length();
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return (p - (a + ab * (d1 / (d1 - d3)))).length();
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return cp.length();
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return (p - (a + ac * (d2 / (d2 - d6)))).length();
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return (p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))))).length();
+    }
+    let denom = 1.0 / (va + vb + vc);
+    (p - (a + ab * (vb * denom) + ac * (vc * denom))).length()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn point_triangle_distance_in_each_region() {
+        let t = [DVec3::ZERO, DVec3::X, DVec3::Y];
+        assert_eq!(point_triangle_distance(DVec3::new(0.2, 0.2, 3.0), &t), 3.0); // face
+        assert_eq!(point_triangle_distance(DVec3::new(-1.0, -1.0, 0.0), &t), 2f64.sqrt()); // vertex a
+        assert_eq!(point_triangle_distance(DVec3::new(0.5, -2.0, 0.0), &t), 2.0); // edge ab
+        assert!((point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), &t) - 0.5f64.sqrt()).abs() < 1e-15); // edge bc
     }
 }

@@ -106,7 +106,7 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
             let min = t.req_vec3("min")?;
             let max = t.req_vec3("max")?;
             if (0..3).any(|i| max[i] <= min[i]) {
-                return Err(t.with("max", |n| Ok(n.err("every coordinate of max must exceed min's")))?.unwrap());
+                return Err(t.err_at("max", "every coordinate of max must exceed min's"));
             }
             Ok(ShapeSpec::Box { min, max, transform })
         }
@@ -117,19 +117,18 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
         }
         "point" => {
             if !is_light {
-                return Err(t.with("type", |n| Ok(n.err("a point has no area: `point` is for lights only")))?.unwrap());
+                return Err(t.err_at("type", "a point has no area: `point` is for lights only"));
             }
             t.allow(&["type", "position", "transform"])?;
             Ok(ShapeSpec::Point { position: t.req_vec3("position")?, transform })
         }
-        other => Err(t
-            .with("type", |n| {
-                Ok(n.err(format!(
-                    "unknown shape type \"{other}\"; known types: quad, disk, sphere, box, mesh{}",
-                    if is_light { ", point" } else { "" }
-                )))
-            })?
-            .unwrap()),
+        other => Err(t.err_at(
+            "type",
+            format!(
+                "unknown shape type \"{other}\"; known types: quad, disk, sphere, box, mesh{}",
+                if is_light { ", point" } else { "" }
+            ),
+        )),
     }
 }
 
@@ -170,6 +169,15 @@ pub fn triangulate(
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
             let tris = vec![[a, b, c], [a, c, d]];
+            let (n0, n1) = ((b - a).cross(c - a), (c - a).cross(d - a));
+            if n0.dot(n1) < 0.0 {
+                return Err(InputError::new(
+                    src.file,
+                    key,
+                    Some(line),
+                    "the quad's corners do not go around it in order: its two halves face opposite ways",
+                ));
+            }
             let total = twice_area(&tris[0]) + twice_area(&tris[1]);
             let scale = [a, b, c, d].iter().map(|p| p.abs().max_element()).fold(0.0, f64::max).max(1e-300);
             if total <= 1e-12 * scale * scale {
