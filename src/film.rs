@@ -88,34 +88,48 @@ impl CameraModel {
     }
 }
 
-/// One batch's splats: XYZ per pixel, in units of emitted photon weight.
+/// Photons per film batch: the unit whose spread gives each pixel's variance. Small, so even
+/// short runs have many film batches; fixed within each transport batch, so thread-independent.
+pub const FILM_BATCH_PHOTONS: u32 = 1024;
+
+/// One splat: which photon of the transport batch made it, where, and its XYZ (in units of
+/// emitted photon weight).
+#[derive(Clone, Copy, Debug)]
+pub struct Splat {
+    pub photon: u32,
+    pub pixel: u32,
+    pub xyz: [f32; 3],
+}
+
+/// One transport batch's splats, in photon order: a list rather than a full-resolution buffer, so
+/// a batch costs memory in proportion to what it splatted, whatever the resolution.
+#[derive(Default)]
 pub struct FilmBatch {
-    pub xyz: Array2<f32>,
+    pub splats: Vec<Splat>,
+    /// The photon now being traced (its index within the transport batch).
+    pub photon: u32,
 }
 
 impl FilmBatch {
-    pub fn new(pixels: usize) -> Self {
-        FilmBatch { xyz: Array2::zeros((pixels, 3)) }
-    }
-
     #[inline]
     pub fn add(&mut self, pixel: usize, xyz: Vec3A) {
-        let mut row = self.xyz.row_mut(pixel);
-        row[0] += xyz.x;
-        row[1] += xyz.y;
-        row[2] += xyz.z;
+        self.splats.push(Splat { photon: self.photon, pixel: pixel as u32, xyz: [xyz.x, xyz.y, xyz.z] });
     }
 }
 
-/// The run's film: batch sums merged in batch order (f64), plus Σ S_b²/n_b of Y for the variance
-/// between batches.
+/// The run's film: splats merged in batch order into f64 sums, plus, per film batch b of n_b
+/// photons with pixel sums S_b, Σ S_b²/n_b for each pixel's Y and for the whole image's Y.
 pub struct Film {
     pub width: usize,
     pub height: usize,
     xyz_sum: Array2<f64>,
     y_sq_over_n: Vec<f64>,
+    image_y_sq_over_n: f64,
     photons: u64,
-    batches: u64,
+    film_batches: u64,
+    /// Scratch for one film batch's per-pixel Y, and the pixels it touched.
+    scratch_y: Vec<f64>,
+    touched: Vec<u32>,
 }
 
 /// The finished image: per pixel linear XYZ and RGB radiance, and Y's variance.
@@ -126,51 +140,83 @@ pub struct Image {
     pub xyz: Array2<f32>,
     pub rgb: Array3<f32>,
     pub y_var: Vec<f32>,
-    pub batches: u64,
-}
-
-impl Image {
-    /// Mean Y over all pixels and its standard error sqrt(ΣY_var)/n: each photon vertex splats into
-    /// one pixel, so pixel estimates are independent.
-    pub fn mean_y(&self) -> (f64, f64) {
-        let n = self.y_var.len() as f64;
-        let mean = self.xyz.column(1).iter().map(|&y| y as f64).sum::<f64>() / n;
-        let var: f64 = self.y_var.iter().map(|&v| v as f64).sum();
-        (mean, var.sqrt() / n)
-    }
 }
 
 impl Film {
     pub fn new(width: usize, height: usize) -> Self {
+        let pixels = width * height;
         Film {
             width,
             height,
-            xyz_sum: Array2::zeros((width * height, 3)),
-            y_sq_over_n: vec![0.0; width * height],
+            xyz_sum: Array2::zeros((pixels, 3)),
+            y_sq_over_n: vec![0.0; pixels],
+            image_y_sq_over_n: 0.0,
             photons: 0,
-            batches: 0,
+            film_batches: 0,
+            scratch_y: vec![0.0; pixels],
+            touched: Vec::new(),
         }
     }
 
+    /// Adds one transport batch of `photons` photons. Called in batch order.
     pub fn merge(&mut self, b: &FilmBatch, photons: u64) {
-        let n = photons as f64;
-        for (p, row) in b.xyz.rows().into_iter().enumerate() {
-            let mut acc = self.xyz_sum.row_mut(p);
-            acc[0] += row[0] as f64;
-            acc[1] += row[1] as f64;
-            acc[2] += row[2] as f64;
-            self.y_sq_over_n[p] += (row[1] as f64).powi(2) / n;
+        let sub = FILM_BATCH_PHOTONS as u64;
+        let mut splats = b.splats.iter().peekable();
+        for k in 0..photons.div_ceil(sub) {
+            let n = sub.min(photons - k * sub) as f64;
+            let mut image_y = 0.0;
+            while let Some(sp) = splats.next_if(|sp| (sp.photon as u64) < (k + 1) * sub) {
+                let p = sp.pixel as usize;
+                let mut acc = self.xyz_sum.row_mut(p);
+                acc[0] += sp.xyz[0] as f64;
+                acc[1] += sp.xyz[1] as f64;
+                acc[2] += sp.xyz[2] as f64;
+                if self.scratch_y[p] == 0.0 {
+                    self.touched.push(sp.pixel);
+                }
+                self.scratch_y[p] += sp.xyz[1] as f64;
+                image_y += sp.xyz[1] as f64;
+            }
+            for &p in &self.touched {
+                let y = std::mem::take(&mut self.scratch_y[p as usize]);
+                self.y_sq_over_n[p as usize] += y * y / n;
+            }
+            self.touched.clear();
+            self.image_y_sq_over_n += image_y * image_y / n;
+            self.film_batches += 1;
         }
         self.photons += photons;
-        self.batches += 1;
     }
 
-    /// `watts_per_weight` = Φ_total/N. Pixel mean m = ΣS_b/N; the per-photon variance is
-    /// estimated from the batch means m_b = S_b/n_b as Σ n_b (m_b − m)²/(K − 1) = (Σ S_b²/n_b − N m²)/(K − 1),
-    /// and the variance of the pixel's estimate is that over N.
+    /// Between-batch variance of a mean: with per-batch sums S_b over n_b photons (N in all, K
+    /// batches) and m = ΣS_b/N, the per-photon variance is Σ n_b (m_b − m)²/(K − 1) =
+    /// (Σ S_b²/n_b − N m²)/(K − 1), and the mean's variance is that over N.
+    fn variance_of_mean(&self, sum: f64, sq_over_n: f64) -> f64 {
+        let (n, k) = (self.photons as f64, self.film_batches as f64);
+        if self.film_batches < 2 {
+            return 0.0;
+        }
+        let m = sum / n;
+        ((sq_over_n - n * m * m) / (k - 1.0)).max(0.0) / n
+    }
+
+    pub fn film_batches(&self) -> u64 {
+        self.film_batches
+    }
+
+    /// Mean Y over the image and its standard error, from the spread of whole-image batch sums
+    /// (pixels are correlated: one photon splats into several).
+    pub fn mean_y(&self, emitted_w: f64) -> (f64, f64) {
+        let pixels = (self.width * self.height) as f64;
+        let n = self.photons.max(1) as f64;
+        let total: f64 = self.xyz_sum.column(1).sum();
+        let var = self.variance_of_mean(total, self.image_y_sq_over_n);
+        (total / n * emitted_w / pixels, var.sqrt() * emitted_w / pixels)
+    }
+
+    /// The image in watts: each photon carries Φ_total/N; Y_var from the film batches' spread.
     pub fn image(&self, emitted_w: f64) -> Image {
         let n = self.photons.max(1) as f64;
-        let k = self.batches as f64;
         let w = emitted_w / n;
         let pixels = self.width * self.height;
         let mut xyz = Array2::zeros((pixels, 3));
@@ -187,12 +233,8 @@ impl Film {
             rgb[[row, col, 0]] = c.x;
             rgb[[row, col, 1]] = c.y;
             rgb[[row, col, 2]] = c.z;
-            if self.batches > 1 {
-                let mean = s[1] / n;
-                let per_photon_var = ((self.y_sq_over_n[p] - n * mean * mean) / (k - 1.0)).max(0.0);
-                y_var[p] = (per_photon_var / n * (emitted_w * emitted_w)) as f32;
-            }
+            y_var[p] = (self.variance_of_mean(s[1], self.y_sq_over_n[p]) * emitted_w * emitted_w) as f32;
         }
-        Image { width: self.width, height: self.height, xyz, rgb, y_var, batches: self.batches }
+        Image { width: self.width, height: self.height, xyz, rgb, y_var }
     }
 }

@@ -121,7 +121,12 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
         let image = film.image(result.emitted_w);
         output::write_exr(&out_dir, &image)?;
         output::write_png(&out_dir, &image)?;
-        info.image_mean_y = Some(image.mean_y());
+        info.image_mean_y = Some(film.mean_y(result.emitted_w));
+        if film.film_batches() < 2 {
+            eprintln!(
+                "warning: fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0"
+            );
+        }
     }
     output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {

@@ -22,7 +22,7 @@ pub struct Kernel<'a> {
 impl Kernel<'_> {
     /// Traces one batch, dispatching once to the kernel specialised for the scene's effects.
     pub fn trace_batch(&self, batch: u64, count: u64) -> (Tallies, Option<FilmBatch>) {
-        let mut film = self.camera.map(|c| FilmBatch::new(c.width * c.height));
+        let mut film = self.camera.map(|_| FilmBatch::default());
         let tallies = match (self.scene.effects.spectral, film.as_mut()) {
             (false, None) => self.trace::<false, false>(batch, count, None),
             (true, None) => self.trace::<true, false>(batch, count, None),
@@ -50,8 +50,11 @@ impl Kernel<'_> {
         let mut incident = HistoryScores::new(n_surfaces);
         let mut absorbed = HistoryScores::new(n_surfaces);
 
-        for _ in 0..count {
+        for photon in 0..count as u32 {
             let birth = self.emitter.emit::<SPECTRAL>(geo, &mut s);
+            if let Some(f) = film.as_deref_mut() {
+                f.photon = photon;
+            }
             let lambda = birth.lambda_nm;
             let weight = 1.0;
             if CAMERA {
@@ -73,6 +76,7 @@ impl Kernel<'_> {
             let mut dir = birth.dir;
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
+            let mut medium: Option<u32> = None;
             loop {
                 let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {
                     out.escaped += weight;
@@ -82,12 +86,18 @@ impl Kernel<'_> {
                 let surface = geo.surface[prim];
                 let material = materials[surface as usize];
                 let n = geo.normals[prim];
-                // Beer–Lambert: a photon reaching a dielectric from inside crossed its medium over
-                // distance t and survived with probability exp(−α t); otherwise the medium absorbed it.
-                if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = material {
-                    if dir.dot(n) > 0.0 && s.uniform() >= (-alpha.eval(lambda) * hit.t as f64).exp() {
-                        absorbed.add(surface, weight);
-                        break;
+                // Beer–Lambert: a photon crossing an absorbing medium over distance t survives with
+                // probability exp(−α t); otherwise the medium absorbs it (tallied to its surface).
+                // The medium is the dielectric the photon last refracted into, or, for a photon born
+                // inside one, the dielectric it now reaches from inside.
+                let is_dielectric = matches!(material, Material::Dielectric { .. });
+                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
+                if let Some(m) = segment_medium {
+                    if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = materials[m as usize] {
+                        if s.uniform() >= (-alpha.eval(lambda) * hit.t as f64).exp() {
+                            absorbed.add(m, weight);
+                            break;
+                        }
                     }
                 }
                 incident.add(surface, weight);
@@ -116,6 +126,10 @@ impl Kernel<'_> {
                             break;
                         }
                         scatterings += 1;
+                        if is_dielectric {
+                            // Inside is the side opposite the normal.
+                            medium = (new_dir.dot(n) < 0.0).then_some(surface);
+                        }
                         origin = offset_ray_origin(p, err, n, new_dir);
                         dir = new_dir;
                         skip = hit.prim;

@@ -389,7 +389,7 @@ fn image_normalisation(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error
     let film = r.film.as_ref().expect("the case has a camera");
     out.push(case(
         "image: emitter of radiance c reads Y = c",
-        film.image(r.emitted_w).mean_y(),
+        film.mean_y(r.emitted_w),
         c,
         0.002 * ctx.loose,
         "film.rs",

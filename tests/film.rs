@@ -1,7 +1,7 @@
 //! The light-traced film: normalisation against closed forms, colour, determinism, EXR layout.
 //! Statistical bounds: 4 standard errors for a whole-image mean (false-failure chance 6e-5);
-//! 6 for each of hundreds of pixels, whose Y_var comes from ≥ 60 batches, so the Student-t tail
-//! P(|t₆₀| > 6) ≈ 1e-7 per pixel keeps the whole image's false-failure chance below 1e-4.
+//! 6 for each of hundreds of pixels, whose Y_var comes from ~1000 film batches of 1024 photons,
+//! so P(|z| > 6) ≈ 2e-9 per pixel keeps the whole image's false-failure chance below 1e-5.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -60,8 +60,8 @@ fn render(name: &str, toml: &str, args: &[&str]) -> (Exr, PathBuf) {
     (read_exr(&out.join("image.exr")), dir)
 }
 
-/// Whole-image mean of Y and its standard error sqrt(ΣY_var)/n (pixels are independent: each
-/// photon vertex splats into one pixel).
+/// Whole-image mean of Y and its standard error sqrt(ΣY_var)/n. Pixels are independent here
+/// because in these scenes each photon splats at most once (emission, or one diffuse hit).
 fn image_mean(img: &Exr) -> (f64, f64) {
     let y = &img.channels["Y"];
     let var = &img.channels["Y_var"];

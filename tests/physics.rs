@@ -166,3 +166,37 @@ fn lambertian_transmitter_splits_reflectance_and_transmittance() {
     assert!((d.incident_w - 2.0).abs() < 1e-12);
     assert_z("diffuser absorbed", d.absorbed_w, 2.0 * 0.2, d.absorbed_w_stderr, 4.0);
 }
+
+#[test]
+fn absorbing_medium_attenuates_the_path_to_an_immersed_object() {
+    // A beam enters a water tank (n = 1.33, α = 1/m) at normal incidence through its top face and
+    // crosses 1 m of water to an absorbing plate lying inside on the bottom: it arrives with
+    // P·(1 − R)·e^{−α·1 m}, R = ((n − 1)/(n + 1))². The path ends on the plate, not on the tank's
+    // own face, so this needs the photon to know which medium it is in.
+    let f = run(
+        r#"
+        [materials.water]
+        type = "dielectric"
+        ior = 1.33
+        absorption_per_m = 1.0
+        [[surfaces]]
+        name = "tank"
+        material = "water"
+        shape = { type = "box", min = [-1, -1.5, -1], max = [1, 0, 1] }
+        [[surfaces]]
+        name = "plate"
+        material = "absorber"
+        shape = { type = "quad", corners = [[-0.5, -1, -0.5], [0.5, -1, -0.5], [0.5, -1, 0.5], [-0.5, -1, 0.5]] }
+        [[lights]]
+        name = "beam"
+        shape = { type = "quad", corners = [[-0.1, 1, -0.1], [0.1, 1, -0.1], [0.1, 1, 0.1], [-0.1, 1, 0.1]] }
+        power_w = 1
+        distribution = "collimated"
+        "#,
+        100_000,
+        4,
+    );
+    let r: f64 = ((1.33 - 1.0) / (1.33 + 1.0) as f64).powi(2);
+    let p = surface(&f, "plate");
+    assert_z("immersed plate", p.incident_w, (1.0 - r) * (-1.0f64).exp(), p.incident_w_stderr, 4.0);
+}

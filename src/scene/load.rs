@@ -377,7 +377,9 @@ impl<'s> Loader<'s> {
         let err = |m: String| InputError::new(self.src.file, key, Some(line), m);
         let tris: Vec<[DVec3; 3]> = tris.into_iter().map(|t| t.map(|v| v * unit_m)).collect();
         if let Some(c) = tris.iter().flatten().map(|v| v.abs().max_element()).find(|c| !(*c <= MAX_COORD_M)) {
-            return Err(err(format!("a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin")));
+            return Err(err(format!(
+                "a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin"
+            )));
         }
         let total = tris.len();
         let kept: Vec<[DVec3; 3]> = tris
@@ -389,7 +391,9 @@ impl<'s> Loader<'s> {
             })
             .collect();
         if kept.is_empty() {
-            return Err(err("the shape has no area at single precision: it is too thin for its distance from the origin".into()));
+            return Err(err(
+                "the shape has no area at single precision: it is too thin for its distance from the origin".into(),
+            ));
         }
         if kept.len() < total {
             warnings.push(format!(
@@ -587,7 +591,9 @@ impl<'s> Loader<'s> {
             .with("resolution", |n| {
                 let r = n.each(|x| x.u64())?;
                 if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0] * r[1] > MAX_PIXELS {
-                    return Err(n.err(format!("expected [width, height] of at least 1 pixel each and at most {MAX_PIXELS} pixels in all")));
+                    return Err(n.err(format!(
+                        "expected [width, height] of at least 1 pixel each and at most {MAX_PIXELS} pixels in all"
+                    )));
                 }
                 Ok([r[0] as u32, r[1] as u32])
             })?
@@ -806,6 +812,7 @@ mod tests {
         assert_eq!(point_triangle_distance(DVec3::new(0.2, 0.2, 3.0), &t), 3.0); // face
         assert_eq!(point_triangle_distance(DVec3::new(-1.0, -1.0, 0.0), &t), 2f64.sqrt()); // vertex a
         assert_eq!(point_triangle_distance(DVec3::new(0.5, -2.0, 0.0), &t), 2.0); // edge ab
-        assert!((point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), &t) - 0.5f64.sqrt()).abs() < 1e-15); // edge bc
+        assert!((point_triangle_distance(DVec3::new(1.0, 1.0, 0.0), &t) - 0.5f64.sqrt()).abs() < 1e-15);
+        // edge bc
     }
 }
