@@ -5,11 +5,11 @@
 use std::time::Duration;
 
 use glam::Vec3A;
-use obvhs::cwbvh::builder::build_cwbvh_from_tris;
-use obvhs::cwbvh::CwBvh;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::builder::build_bvh2;
+use obvhs::bvh2::Bvh2;
 use obvhs::ray::{Ray, RayHit};
-use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
+use obvhs::{Boundable, BvhBuildParams};
 
 /// No primitive: used as "skip nothing".
 pub const NO_PRIM: u32 = u32::MAX;
@@ -29,13 +29,30 @@ pub struct Hit {
     pub b: [f32; 3],
 }
 
+/// A triangle as the BVH sees it: its bounds padded so that the BVH's single-precision slab
+/// tests are conservative. A planar face has a flat box, whose entry and exit distances coincide;
+/// rounding can then put entry after exit and cull the node, and a photon slips out through an
+/// edge. The traversal also ignores box hits closer than f32::EPSILON, so the padding is at least
+/// twice that in absolute terms, and 1e-5 of the coordinates' magnitude in relative terms
+/// (far above the slab test's few-ulp rounding, far below any feature worth tracing).
+struct PaddedTriangle([Vec3A; 3]);
+
+impl Boundable for PaddedTriangle {
+    fn aabb(&self) -> Aabb {
+        let [a, b, c] = self.0;
+        let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+        let pad = Vec3A::splat(2.0 * f32::EPSILON).max(1e-5 * lo.abs().max(hi.abs()));
+        Aabb::new(lo - pad, hi + pad)
+    }
+}
+
 /// All triangles of a scene in BVH order, each knowing its surface.
 pub struct Geometry {
     pub verts: Vec<[Vec3A; 3]>,
     /// Unit geometric normal (v1−v0)×(v2−v0).
     pub normals: Vec<Vec3A>,
     pub surface: Vec<u32>,
-    bvh: Option<CwBvh>,
+    bvh: Option<Bvh2>,
 }
 
 impl Geometry {
@@ -46,8 +63,8 @@ impl Geometry {
         if tris.is_empty() {
             return Geometry { verts: vec![], normals: vec![], surface: vec![], bvh: None };
         }
-        let bvh_tris: Vec<Triangle> = tris.iter().map(|t| Triangle { v0: t[0], v1: t[1], v2: t[2] }).collect();
-        let mut bvh = build_cwbvh_from_tris(&bvh_tris, BvhBuildParams::medium_build(), &mut Duration::default());
+        let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
+        let mut bvh = build_bvh2(&padded, BvhBuildParams::medium_build(), &mut Duration::default());
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
@@ -177,6 +194,7 @@ pub fn intersect_triangle(o: Vec3A, d: Vec3A, t_max: f32, tri: &[Vec3A; 3]) -> O
     let kz = max_dim(d.abs());
     let kx = if kz == 2 { 0 } else { kz + 1 };
     let ky = if kx == 2 { 0 } else { kx + 1 };
+    let dir = d;
     let d = permute(d, kx, ky, kz);
     let mut p0 = permute(tri[0] - o, kx, ky, kz);
     let mut p1 = permute(tri[1] - o, kx, ky, kz);
@@ -228,9 +246,72 @@ pub fn intersect_triangle(o: Vec3A, d: Vec3A, t_max: f32, tri: &[Vec3A; 3]) -> O
     let max_e = e0.abs().max(e1.abs()).max(e2.abs());
     let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
     if t <= delta_t {
-        return None;
+        // The f32 bound cannot prove t > 0. Near a concave edge a genuine hit can sit closer than
+        // that bound (it grows with the triangle's size), and rejecting it would let the photon
+        // leak: decide again in f64, whose bound is 2^29 times tighter.
+        return intersect_triangle_f64(o, dir, t_max, tri);
     }
     Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
+}
+
+/// γ(n) for f64 arithmetic.
+fn gamma64(n: i32) -> f64 {
+    let e = f64::EPSILON * 0.5;
+    (n as f64 * e) / (1.0 - n as f64 * e)
+}
+
+/// The same watertight test carried out in f64 (the f32 inputs are exact in f64).
+#[cold]
+fn intersect_triangle_f64(o: Vec3A, d: Vec3A, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
+    use glam::DVec3;
+    let (o, d) = (o.as_dvec3(), d.as_dvec3());
+    let kz = max_dim(d.abs().as_vec3a());
+    let kx = if kz == 2 { 0 } else { kz + 1 };
+    let ky = if kx == 2 { 0 } else { kx + 1 };
+    let perm = |v: DVec3| DVec3::new(v[kx], v[ky], v[kz]);
+    let d = perm(d);
+    let mut p = tri.map(|v| perm(v.as_dvec3() - o));
+    let (sx, sy, sz) = (-d.x / d.z, -d.y / d.z, 1.0 / d.z);
+    for q in &mut p {
+        q.x += sx * q.z;
+        q.y += sy * q.z;
+    }
+    let e0 = p[1].x * p[2].y - p[1].y * p[2].x;
+    let e1 = p[2].x * p[0].y - p[2].y * p[0].x;
+    let e2 = p[0].x * p[1].y - p[0].y * p[1].x;
+    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        return None;
+    }
+    let det = e0 + e1 + e2;
+    if det == 0.0 {
+        return None;
+    }
+    for q in &mut p {
+        q.z *= sz;
+    }
+    let t_scaled = e0 * p[0].z + e1 * p[1].z + e2 * p[2].z;
+    let t_max = t_max as f64;
+    if (det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det))
+        || (det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det))
+    {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    let t = t_scaled * inv_det;
+    let max_zt = p.iter().map(|q| q.z.abs()).fold(0.0, f64::max);
+    let max_xt = p.iter().map(|q| q.x.abs()).fold(0.0, f64::max);
+    let max_yt = p.iter().map(|q| q.y.abs()).fold(0.0, f64::max);
+    let delta_z = gamma64(3) * max_zt;
+    let delta_x = gamma64(5) * (max_xt + max_zt);
+    let delta_y = gamma64(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma64(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+    let delta_t = 3.0 * (gamma64(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+    // The hit is reported in f32: it must also be a positive f32 distance.
+    if t <= delta_t || (t as f32) <= 0.0 || !((t as f32) < t_max as f32) {
+        return None;
+    }
+    Some((t as f32, [(e0 * inv_det) as f32, (e1 * inv_det) as f32, (e2 * inv_det) as f32]))
 }
 
 /// Orthonormal basis around unit `n` (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").

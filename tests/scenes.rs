@@ -31,6 +31,17 @@ fn every_bundled_scene_balances_its_ledger() {
         assert!(ledger.relative_residual() < 1e-9, "{}: {ledger:?}", path.display());
         assert!((ledger.emitted_w - scene.total_power_w()).abs() <= 1e-12 * ledger.emitted_w);
         assert_eq!(r.tallies.photons, 40_000);
+        // No output may hold NaN or ∞: every flux number, and every image channel.
+        let flux = serde_json::to_string(&photon::output::flux(&scene, &r)).unwrap();
+        assert!(!flux.contains("null") && !flux.contains("NaN") && !flux.contains("inf"), "{}: {flux}", path.display());
+        if let Some(film) = &r.film {
+            let img = film.image(r.emitted_w);
+            assert!(
+                img.xyz.iter().chain(img.rgb.iter()).chain(img.y_var.iter()).all(|v| v.is_finite()),
+                "{}",
+                path.display()
+            );
+        }
     }
 }
 

@@ -252,52 +252,92 @@ impl<'s> Loader<'s> {
             ..c
         });
 
-        // Triangulate: surfaces first, then area lights, each triangle tagged with its surface.
+        // Triangulate in metres (f64): surfaces first, then area lights.
         let mut warnings = Vec::new();
-        let mut tris: Vec<[Vec3A; 3]> = Vec::new();
-        let mut tri_surface: Vec<u32> = Vec::new();
-        let mut surfaces: Vec<Surface> = Vec::new();
-        // Returns (surface index, area in m²).
-        let mut add_surface =
-            |name: &str, material: usize, tri_list: Vec<[DVec3; 3]>, light: Option<usize>| -> (usize, f64) {
-                let id = surfaces.len() as u32;
-                let mut area = 0.0;
-                for m in &tri_list {
-                    area += 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length();
-                    tris.push(m.map(|v| v.as_vec3a()));
-                    tri_surface.push(id);
-                }
-                surfaces.push(Surface {
-                    name: name.to_string(),
-                    material,
-                    area_m2: area,
-                    triangles: tri_list.len(),
-                    light,
-                });
-                (id as usize, area)
-            };
+        struct Shaped {
+            name: String,
+            material: usize,
+            tris: Vec<[DVec3; 3]>,
+            light: Option<usize>,
+            key: String,
+            line: usize,
+        }
+        let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
             let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
-            let t = self.in_metres(t, unit_m, &key, e.shape_line, &mut warnings)?;
-            add_surface(&e.name, e.material, t, None);
+            let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
+            shaped.push(Shaped {
+                name: e.name.clone(),
+                material: e.material,
+                tris,
+                light: None,
+                key,
+                line: e.shape_line,
+            });
         }
-        let mut lights = Vec::with_capacity(light_specs.len());
-        let mut light_lines = Vec::with_capacity(light_specs.len());
-        for (i, spec) in light_specs.into_iter().enumerate() {
+        let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
+        for (i, spec) in light_specs.iter().enumerate() {
             let key = child_path(&spec.path, "shape");
-            let (shape, area_m2) = match &spec.shape {
+            match &spec.shape {
                 ShapeSpec::Point { position, transform } => {
                     let p = transform.apply_point(DVec3::from(*position)) * unit_m;
                     let axis = spec.axis.map(|a| transform.apply_dir(a)).unwrap_or(DVec3::Z);
-                    (LightShape::Point { position: p, axis }, 0.0)
+                    point_positions.push(Some((p, axis)));
                 }
                 other => {
                     let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
-                    let t = self.in_metres(t, unit_m, &key, spec.shape_line, &mut warnings)?;
-                    let (surface, area) = add_surface(&spec.name, spec.material, t, Some(i));
-                    (LightShape::Area { surface }, area)
+                    let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
+                    let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
+                    shaped.push(Shaped { name, material, tris, light: Some(i), key, line });
+                    point_positions.push(None);
                 }
+            }
+        }
+
+        // Physics does not care where the scene sits, but f32 precision does: move the scene's
+        // bounding box to the origin, so a scene 100 km out is traced as finely as one at home.
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for v in
+            shaped.iter().flat_map(|s| s.tris.iter().flatten()).chain(point_positions.iter().flatten().map(|(p, _)| p))
+        {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
+        }
+        let origin_m = (lo + hi) * 0.5;
+
+        let mut tris: Vec<[Vec3A; 3]> = Vec::new();
+        let mut tri_surface: Vec<u32> = Vec::new();
+        let mut surfaces: Vec<Surface> = Vec::new();
+        let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_specs.len()];
+        for sh in shaped {
+            let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
+            let kept = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
+            let id = surfaces.len();
+            let area: f64 = kept.iter().map(|m| 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length()).sum();
+            for m in &kept {
+                tris.push(m.map(|v| v.as_vec3a()));
+                tri_surface.push(id as u32);
+            }
+            surfaces.push(Surface {
+                name: sh.name,
+                material: sh.material,
+                area_m2: area,
+                triangles: kept.len(),
+                light: sh.light,
+            });
+            if let Some(l) = sh.light {
+                light_surface[l] = Some((id, area));
+            }
+        }
+
+        let mut lights = Vec::with_capacity(light_specs.len());
+        let mut light_lines = Vec::with_capacity(light_specs.len());
+        for (i, spec) in light_specs.into_iter().enumerate() {
+            let (shape, area_m2) = match (point_positions[i], light_surface[i]) {
+                (Some((p, axis)), _) => (LightShape::Point { position: p - origin_m, axis }, 0.0),
+                (None, Some((surface, area))) => (LightShape::Area { surface }, area),
+                (None, None) => unreachable!("every light is a point or a surface"),
             };
             let (power_w, spectrum) = match spec.power {
                 PowerSpec::Watts(p) => (p, spec.spectrum),
@@ -316,6 +356,7 @@ impl<'s> Loader<'s> {
             light_lines.push(spec.shape_line);
             lights.push(Light { name: spec.name, shape, power_w, spectrum, distribution: spec.distribution });
         }
+        let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
         let mut used = vec![false; materials.len()];
         for s in &surfaces {
@@ -362,25 +403,31 @@ impl<'s> Loader<'s> {
         })
     }
 
-    /// Scales a shape's triangles to metres and checks them at the single precision the tracer
-    /// uses: coordinates too far out for the BVH's f32 bounds are an error (it would panic on
-    /// them), and a triangle too thin to have an f32 normal is dropped with a warning (it would
-    /// give NaN directions); a shape left with no triangle is an error.
-    fn in_metres(
+    /// Scales a shape's triangles to metres. Coordinates too far out for the BVH's f32 bounds
+    /// are an error (it would panic on them).
+    fn in_metres(&self, tris: Vec<[DVec3; 3]>, unit_m: f64, key: &str, line: usize) -> R<Vec<[DVec3; 3]>> {
+        let tris: Vec<[DVec3; 3]> = tris.into_iter().map(|t| t.map(|v| v * unit_m)).collect();
+        if let Some(c) = tris.iter().flatten().map(|v| v.abs().max_element()).find(|c| !(*c <= MAX_COORD_M)) {
+            return Err(InputError::new(
+                self.src.file,
+                key,
+                Some(line),
+                format!("a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin"),
+            ));
+        }
+        Ok(tris)
+    }
+
+    /// Checks triangles at the single precision the tracer uses: one too thin to have an f32
+    /// normal is dropped with a warning (it would give NaN directions); a shape left with no
+    /// triangle is an error.
+    fn single_precision(
         &self,
         tris: Vec<[DVec3; 3]>,
-        unit_m: f64,
         key: &str,
         line: usize,
         warnings: &mut Vec<String>,
     ) -> R<Vec<[DVec3; 3]>> {
-        let err = |m: String| InputError::new(self.src.file, key, Some(line), m);
-        let tris: Vec<[DVec3; 3]> = tris.into_iter().map(|t| t.map(|v| v * unit_m)).collect();
-        if let Some(c) = tris.iter().flatten().map(|v| v.abs().max_element()).find(|c| !(*c <= MAX_COORD_M)) {
-            return Err(err(format!(
-                "a coordinate reaches {c:e} m; every point must lie within {MAX_COORD_M:e} m of the origin"
-            )));
-        }
         let total = tris.len();
         let kept: Vec<[DVec3; 3]> = tris
             .into_iter()
@@ -391,8 +438,11 @@ impl<'s> Loader<'s> {
             })
             .collect();
         if kept.is_empty() {
-            return Err(err(
-                "the shape has no area at single precision: it is too thin for its distance from the origin".into(),
+            return Err(InputError::new(
+                self.src.file,
+                key,
+                Some(line),
+                "the shape has no area at single precision: it is too thin for its size",
             ));
         }
         if kept.len() < total {

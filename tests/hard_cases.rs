@@ -1,0 +1,387 @@
+//! Hard cases that must stay numerically stable: closed meshes that must never leak, extreme
+//! translations and scales, grazing incidence, touching and coplanar surfaces, albedo near 1,
+//! degenerate mesh faces, and inputs on the edge of sense. Statistical checks use |z| ≤ 4 at a
+//! fixed seed (false-failure chance 6e-5 each); leak checks demand exact zeros.
+
+mod common;
+use common::{assert_z, scene, surface};
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::atomic::AtomicBool;
+
+use photon::output::{self, Flux};
+use photon::run::{apply_options, simulate, RunOptions, RunResult};
+use photon::scene::{load_str, Scene};
+
+fn run_scene(mut s: Scene, photons: u64, seed: u64) -> (Scene, RunResult) {
+    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
+    (s, r)
+}
+
+fn run(toml: &str, photons: u64, seed: u64) -> (Flux, RunResult) {
+    let (s, r) = run_scene(scene(toml), photons, seed);
+    (output::flux(&s, &r), r)
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("photon-hard-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn assert_all_finite(f: &Flux) {
+    let v = serde_json::to_value(f).unwrap();
+    fn walk(v: &serde_json::Value) {
+        match v {
+            serde_json::Value::Number(n) => assert!(n.as_f64().unwrap().is_finite()),
+            serde_json::Value::Array(a) => a.iter().for_each(walk),
+            serde_json::Value::Object(o) => o.values().for_each(walk),
+            _ => {}
+        }
+    }
+    walk(&v);
+    assert!(f.ledger.relative_residual() < 1e-9, "{:?}", f.ledger);
+}
+
+fn furnace(sphere: &str, light: &str, rho: f64, extra: &str) -> String {
+    format!(
+        r#"
+        {extra}
+        [materials.wall]
+        type = "lambertian"
+        reflectance = {rho}
+        [[surfaces]]
+        name = "wall"
+        material = "wall"
+        shape = {sphere}
+        [[lights]]
+        name = "bulb"
+        shape = {{ type = "point", position = {light} }}
+        power_w = 1
+        "#
+    )
+}
+
+#[test]
+fn closed_sphere_and_obj_box_never_leak_over_a_million_photons() {
+    // ρ = 0.99 with the bounce cap at 10: each of the 10⁶ photons crosses up to 11 surface
+    // hits (≈ 10⁷ in all) near edges and vertices; not one may escape. The cap keeps the test
+    // quick; capped photons are booked as truncated, which the ledger must show.
+    let sphere = furnace(
+        "{ type = \"sphere\", center = [0, 0, 0], radius = 1, subdivisions = 6 }",
+        "[0.1, 0.2, 0.3]",
+        0.99,
+        "[simulation]\nmax_bounces = 10",
+    );
+    let (f, _) = run(&sphere, 1_000_000, 1);
+    assert_eq!(f.ledger.escaped_w, 0.0, "light leaked out of the closed sphere");
+    assert!(f.ledger.truncated_w > 0.0);
+    assert_all_finite(&f);
+
+    // A closed box as an OBJ with shared vertices (12 triangles, outward normals).
+    let dir = temp_dir("objbox");
+    let obj = "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n\
+               f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 3 4 8 7\nf 2 3 7 6\nf 1 5 8 4\n";
+    std::fs::write(dir.join("box.obj"), obj).unwrap();
+    let toml = furnace(
+        &format!("{{ type = \"mesh\", file = \"{}\" }}", dir.join("box.obj").display()),
+        "[0.3, -0.2, 0.1]",
+        0.99,
+        "[simulation]\nmax_bounces = 10",
+    );
+    let (f, _) = run(&toml, 1_000_000, 2);
+    assert_eq!(f.ledger.escaped_w, 0.0, "light leaked out of the OBJ box");
+    assert_all_finite(&f);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn furnace_far_from_the_origin_and_at_millimetre_and_kilometre_scale_agrees() {
+    // The ratio incident/emitted = 1/(1−ρ) for any closed enclosure; the same furnace moved
+    // 10⁵ m away (where f32 spacing is 8 mm), shrunk to 1 mm and grown to 1 km must agree with
+    // the reference within 4 combined standard errors, and leak nothing.
+    let sub = "subdivisions = 4";
+    let cases = [
+        ("reference", furnace(&format!("{{ type = \"sphere\", center = [0, 0, 0], radius = 1, {sub} }}"), "[0.1, 0.2, 0.3]", 0.9, "")),
+        (
+            "translated 1e5 m",
+            furnace(
+                &format!("{{ type = \"sphere\", center = [0, 0, 0], radius = 1, {sub}, transform = {{ translate = [1e5, 0, 0] }} }}"),
+                "[100000.1, 0.2, 0.3]",
+                0.9,
+                "",
+            ),
+        ),
+        ("1 mm", furnace(&format!("{{ type = \"sphere\", center = [0, 0, 0], radius = 1, {sub} }}"), "[0.1, 0.2, 0.3]", 0.9, "[scene]\nunit = \"mm\"")),
+        ("1 km", furnace(&format!("{{ type = \"sphere\", center = [0, 0, 0], radius = 1000, {sub} }}"), "[100, 200, 300]", 0.9, "")),
+    ];
+    let results: Vec<(&str, Flux)> =
+        cases.iter().enumerate().map(|(i, (n, t))| (*n, run(t, 100_000, 10 + i as u64).0)).collect();
+    let reference = surface(&results[0].1, "wall");
+    for (name, f) in &results {
+        assert_eq!(f.ledger.escaped_w, 0.0, "{name}: leaked");
+        assert_all_finite(f);
+        let w = surface(f, "wall");
+        let se = (w.incident_w_stderr.powi(2) + reference.incident_w_stderr.powi(2)).sqrt();
+        if *name != "reference" {
+            assert_z(name, w.incident_w, reference.incident_w, se, 4.0);
+        }
+        assert_z(&format!("{name} vs closed form"), w.incident_w, 10.0, w.incident_w_stderr, 4.0);
+    }
+}
+
+#[test]
+fn grazing_beam_at_89_9_degrees_hits_the_plate_exactly_once() {
+    // A collimated beam 0.1° above the plane of a huge Lambertian plate. Every photon must land
+    // (incident = P exactly) and, since a reflected photon can never meet the plane again, scatter
+    // at most once: mean scatterings = ρ (Bernoulli, stderr √(ρ(1−ρ)/N)).
+    let theta = 89.9f64.to_radians();
+    let d = [theta.sin(), -theta.cos(), 0.0];
+    let c = [-100.0 * d[0], -100.0 * d[1], 0.0];
+    // A 0.2 m square facing d: its plane holds z and the direction (cos, sin, 0)·… perpendicular to d.
+    let (ux, uy) = (theta.cos(), theta.sin());
+    let corner = |a: f64, b: f64| format!("[{}, {}, {}]", c[0] + a * ux, c[1] + a * uy, b);
+    let toml = format!(
+        r#"
+        [materials.white]
+        type = "lambertian"
+        reflectance = 0.7
+        [[surfaces]]
+        name = "plate"
+        material = "white"
+        shape = {{ type = "quad", corners = [[-1000, 0, -2], [-1000, 0, 2], [1000, 0, 2], [1000, 0, -2]] }}
+        [[lights]]
+        name = "beam"
+        shape = {{ type = "quad", corners = [{}, {}, {}, {}] }}
+        power_w = 1
+        distribution = "collimated"
+        "#,
+        corner(-0.1, -0.1),
+        corner(0.1, -0.1),
+        corner(0.1, 0.1),
+        corner(-0.1, 0.1)
+    );
+    // Check the beam really points along d (front normal = (b−a)×(c−a)).
+    let s = scene(&toml);
+    let n = s.geometry.normals[s.geometry.surface.iter().position(|&x| x == 1).unwrap()];
+    assert!((n.x as f64 - d[0]).abs() < 1e-5 && (n.y as f64 - d[1]).abs() < 1e-5, "beam normal {n}");
+    let (s, r) = run_scene(s, 200_000, 3);
+    let f = output::flux(&s, &r);
+    let plate = surface(&f, "plate");
+    assert_eq!(plate.incident_w, 1.0, "every grazing photon must land exactly once");
+    let (mean, _) = r.tallies.mean_scatterings();
+    assert_z("mean scatterings", mean, 0.7, (0.7f64 * 0.3 / 200_000.0).sqrt(), 4.0);
+    assert_all_finite(&f);
+}
+
+#[test]
+fn light_flush_with_a_surface_emits_only_away_from_it() {
+    // A lamp lying on a floor, coplanar with it, facing up, nothing else: no photon may hit the
+    // floor it touches, and all power escapes.
+    let (f, _) = run(
+        r#"
+        [[surfaces]]
+        name = "floor"
+        material = "absorber"
+        shape = { type = "quad", corners = [[-2, 0, -2], [-2, 0, 2], [2, 0, 2], [2, 0, -2]] }
+        [[lights]]
+        name = "lamp"
+        shape = { type = "quad", corners = [[-0.5, 0, -0.5], [-0.5, 0, 0.5], [0.5, 0, 0.5], [0.5, 0, -0.5]] }
+        power_w = 1
+        "#,
+        100_000,
+        5,
+    );
+    assert_eq!(surface(&f, "floor").incident_w, 0.0);
+    assert_eq!(f.ledger.escaped_w, 1.0);
+}
+
+fn cornell_with_blocks_lifted(lift_mm: f64) -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let block = |name: &str| {
+        (
+            format!("file = \"meshes/cornell_{name}_block.obj\" }}"),
+            format!("file = \"{root}/scenes/meshes/cornell_{name}_block.obj\", transform = {{ translate = [0, {lift_mm}, 0] }} }}"),
+        )
+    };
+    let (short, tall) = (block("short"), block("tall"));
+    std::fs::read_to_string(format!("{root}/scenes/cornell_box.toml"))
+        .unwrap()
+        .replace("../spectra/", &format!("{root}/spectra/"))
+        .replace(&short.0, &short.1)
+        .replace(&tall.0, &tall.1)
+}
+
+#[test]
+fn blocks_standing_on_the_floor_behave_like_lifted_ones() {
+    // The Cornell blocks stand on the floor: their side faces meet it along edges, where a photon
+    // leaving one surface starts on the other. Against the same box with the blocks lifted by
+    // 0.05 mm, no self-hit loop may appear: mean scatterings and every block and floor flux agree
+    // within 4 combined standard errors (independent seeds).
+    let (fa, ra) = run(&cornell_with_blocks_lifted(0.0), 300_000, 1);
+    let (fb, rb) = run(&cornell_with_blocks_lifted(0.05), 300_000, 2);
+    assert_all_finite(&fa);
+    assert_all_finite(&fb);
+    let (ma, sa) = ra.tallies.mean_scatterings();
+    let (mb, sb) = rb.tallies.mean_scatterings();
+    assert!(ma < 10.0, "mean scatterings {ma}");
+    assert_z("mean scatterings", ma, mb, (sa * sa + sb * sb).sqrt(), 4.0);
+    for name in ["floor", "short_block", "tall_block", "ceiling"] {
+        let (a, b) = (surface(&fa, name), surface(&fb, name));
+        assert_z(
+            name,
+            a.incident_w,
+            b.incident_w,
+            (a.incident_w_stderr.powi(2) + b.incident_w_stderr.powi(2)).sqrt(),
+            4.0,
+        );
+    }
+}
+
+#[test]
+fn albedo_one_and_near_one_report_truncation_and_balance() {
+    // With the bounce cap M a photon is truncated when it would scatter an (M+1)-th time, which
+    // happens with probability ρ^(M+1) (Bernoulli over photons).
+    let m = 300u32;
+    for rho in [0.999, 1.0] {
+        let toml = furnace(
+            "{ type = \"sphere\", center = [0, 0, 0], radius = 1, subdivisions = 3 }",
+            "[0.1, 0.2, 0.3]",
+            rho,
+            &format!("[simulation]\nmax_bounces = {m}"),
+        );
+        let n = 20_000u64;
+        let (f, _) = run(&toml, n, 7);
+        assert_all_finite(&f);
+        assert_eq!(f.ledger.escaped_w, 0.0);
+        let p = rho.powi(m as i32 + 1);
+        if rho == 1.0 {
+            assert_eq!(f.ledger.truncated_w, 1.0);
+            assert_eq!(f.ledger.absorbed_w, 0.0);
+        } else {
+            assert_z("truncated fraction", f.ledger.truncated_w, p, (p * (1.0 - p) / n as f64).sqrt(), 4.0);
+        }
+    }
+}
+
+fn photon_cmd(dir: &std::path::Path, toml: &str, extra: &[&str]) -> std::process::Output {
+    std::fs::write(dir.join("scene.toml"), toml).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_photon"))
+        .arg("run")
+        .arg(dir.join("scene.toml"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .args(["--photons", "20000", "--quiet"])
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn degenerate_obj_faces_are_skipped_with_a_warning_naming_file_and_face() {
+    let dir = temp_dir("degenerate");
+    // Face 2 repeats a vertex, face 3 is collinear; faces 1 and 4 form a closed-enough pair.
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n\
+               f 1 2 3\nf 1 1 3\nf 1 2 5\nf 1 3 4\n";
+    std::fs::write(dir.join("m.obj"), obj).unwrap();
+    let toml = r#"
+        [[surfaces]]
+        name = "mesh"
+        material = "absorber"
+        shape = { type = "mesh", file = "m.obj" }
+        [[lights]]
+        name = "lamp"
+        shape = { type = "quad", corners = [[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]] }
+        power_w = 1
+        distribution = "collimated"
+        "#;
+    // The lamp faces +z, away from the mesh: turn it around so it shines down onto the mesh.
+    let toml =
+        toml.replace("[[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]]", "[[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]]");
+    let o = photon_cmd(&dir, &toml, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    for needle in ["warning", "m.obj:7:", "face 2", "m.obj:8:", "face 3"] {
+        assert!(stderr.contains(needle), "stderr lacks {needle:?}:\n{stderr}");
+    }
+    // The two good triangles cover the unit square under the beam: everything lands on them.
+    let flux: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/flux.json")).unwrap()).unwrap();
+    assert_eq!(flux["surfaces"][0]["incident_w"].as_f64().unwrap(), 1.0);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn point_light_on_a_surface_and_zero_power_are_clear_errors() {
+    let dir = temp_dir("edge-input");
+    let base = r#"
+        [[surfaces]]
+        name = "floor"
+        material = "absorber"
+        shape = { type = "quad", corners = [[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1]] }
+        [[lights]]
+        name = "bulb"
+        shape = { type = "point", position = [0.2, 0, 0.3] }
+        power_w = 1
+        "#;
+    let o = photon_cmd(&dir, base, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("lies on surface \"floor\"") && stderr.contains("lights[0].shape"), "{stderr}");
+    assert!(!dir.join("out").exists());
+
+    let zero = base.replace("[0.2, 0, 0.3]", "[0.2, 1, 0.3]").replace("power_w = 1", "power_w = 0")
+        + "[[lights]]\nname = \"other\"\nshape = { type = \"point\", position = [0, 2, 0] }\npower_w = 3\n";
+    let o = photon_cmd(&dir, &zero, &[]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("power must be positive"), "{stderr}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn camera_inside_a_closed_box_gives_a_finite_image() {
+    let dir = temp_dir("camera-inside");
+    let toml = r#"
+        [camera]
+        position = [0, 0, 0]
+        look_at = [1, 0.2, 0.1]
+        fov_deg = 90
+        resolution = [32, 32]
+        [materials.white]
+        type = "lambertian"
+        reflectance = 0.6
+        [[surfaces]]
+        name = "room"
+        material = "white"
+        shape = { type = "box", min = [-2, -2, -2], max = [2, 2, 2] }
+        [[lights]]
+        name = "bulb"
+        shape = { type = "point", position = [0.5, 1, 0.5] }
+        power_w = 10
+        "#;
+    let o = photon_cmd(&dir, toml, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("out/run.json")).unwrap()).unwrap();
+    let mean_y = run["image_mean_y"][0].as_f64().unwrap();
+    assert!(mean_y.is_finite() && mean_y > 0.0, "{run}");
+    let bytes = std::fs::read(dir.join("out/image.exr")).unwrap();
+    assert!(bytes.len() > 100);
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn loading_keeps_every_scene_number_finite() {
+    // A scene built only from the parser and loader: any NaN there would surface in areas.
+    let s = load_str(
+        std::path::Path::new("x.toml"),
+        &furnace("{ type = \"sphere\", center = [0, 0, 0], radius = 1e-3 }", "[0, 0, 0]", 0.5, ""),
+    )
+    .unwrap();
+    assert!(s.surfaces.iter().all(|x| x.area_m2.is_finite() && x.area_m2 > 0.0));
+}
