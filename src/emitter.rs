@@ -7,7 +7,7 @@ use glam::Vec3A;
 
 use crate::geometry::{offset_ray_origin, NO_PRIM};
 use crate::sampling::{
-    cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle, Discrete, Sampler,
+    cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle, Discrete,
 };
 use crate::scene::{Distribution, LightShape, Scene};
 use crate::spectrum::SpectralSampler;
@@ -28,6 +28,7 @@ struct EmitLight {
     origin: Origin,
     distribution: Distribution,
     spectrum: Option<SpectralSampler>,
+    spectrum_shape: crate::spectrum::Spectrum,
     /// Grey transport's colour weights: ∫S·(x̄,ȳ,z̄)dλ / (∫S dλ · ∫ȳ dλ) for the light's spectrum S.
     grey_xyz: Vec3A,
 }
@@ -53,6 +54,11 @@ pub struct Birth {
     /// Emission axis: the triangle's front normal, or a point light's axis.
     pub axis: Vec3A,
 }
+
+/// The uniform numbers one emission consumes: light, wavelength, triangle, two barycentric, two
+/// direction. Drawn plainly or stratified across a batch (see `transport`).
+pub const EMIT_DIMS: usize = 7;
+pub type EmitSample = [f64; EMIT_DIMS];
 
 pub struct Emitter {
     pick: Discrete,
@@ -90,6 +96,7 @@ impl Emitter {
                     origin,
                     distribution: l.distribution,
                     spectrum: SpectralSampler::new(&l.spectrum, range),
+                    spectrum_shape: l.spectrum.clone(),
                     grey_xyz,
                 }
             })
@@ -105,34 +112,35 @@ impl Emitter {
         }
     }
 
-    /// Samples one photon. With `SPECTRAL` false no wavelength is drawn.
+    /// Samples one photon from the uniform numbers `u` (see `EmitSample`). With `SPECTRAL` false
+    /// the wavelength number is ignored.
     #[inline]
-    pub fn emit<const SPECTRAL: bool>(&self, geo: &crate::geometry::Geometry, s: &mut Sampler) -> Birth {
-        let light = self.pick.sample(s.uniform());
+    pub fn emit<const SPECTRAL: bool>(&self, geo: &crate::geometry::Geometry, u: &EmitSample) -> Birth {
+        let light = self.pick.sample(u[0]);
         let l = &self.lights[light];
         let (lambda_nm, xyz) = if SPECTRAL {
             // The loader guarantees a positive spectral integral, so a sampler exists.
-            let lambda = l.spectrum.as_ref().map_or(f64::NAN, |sp| sp.sample(s.uniform()));
-            let c = self.cmf.at(lambda);
-            (lambda, Vec3A::new((c[0] * self.y_norm) as f32, (c[1] * self.y_norm) as f32, (c[2] * self.y_norm) as f32))
+            let lambda = l.spectrum.as_ref().map_or(f64::NAN, |sp| sp.sample(u[1]));
+            (lambda, self.colour(lambda))
         } else {
             (f64::NAN, l.grey_xyz)
         };
+        let (u1, u2) = (u[5] as f32, u[6] as f32);
         match &l.origin {
             Origin::Area { prims, pick } => {
-                let prim = prims[pick.sample(s.uniform())];
-                let b = uniform_triangle(s.uniform_f32(), s.uniform_f32());
+                let prim = prims[pick.sample(u[2])];
+                let b = uniform_triangle(u[3] as f32, u[4] as f32);
                 let hit = crate::geometry::Hit { t: 0.0, prim, b };
                 let (point, err) = geo.hit_point(&hit);
                 let normal = geo.normals[prim as usize];
-                let dir = direction(l.distribution, normal, s);
+                let dir = direction(l.distribution, normal, u1, u2);
                 let origin = offset_ray_origin(point, err, normal, dir);
                 Birth { light, point, origin, dir, normal, prim, lambda_nm, xyz, point_err: err, axis: normal }
             }
             Origin::Point { position, axis } => {
                 let dir = match l.distribution {
-                    Distribution::Isotropic => uniform_sphere(s.uniform_f32(), s.uniform_f32()),
-                    other => direction(other, *axis, s),
+                    Distribution::Isotropic => uniform_sphere(u1, u2),
+                    other => direction(other, *axis, u1, u2),
                 };
                 Birth {
                     light,
@@ -148,6 +156,19 @@ impl Emitter {
                 }
             }
         }
+    }
+
+    /// Colour weights (x̄, ȳ, z̄)(λ)/∫ȳ of a photon of wavelength λ.
+    #[inline]
+    pub fn colour(&self, lambda_nm: f64) -> Vec3A {
+        let c = self.cmf.at(lambda_nm);
+        Vec3A::new((c[0] * self.y_norm) as f32, (c[1] * self.y_norm) as f32, (c[2] * self.y_norm) as f32)
+    }
+
+    /// Relative spectral power S(λ) of light `light` (the shape its wavelengths are drawn from).
+    #[inline]
+    pub fn spectral_power(&self, light: usize, lambda_nm: f64) -> f64 {
+        self.lights[light].spectrum_shape.eval(lambda_nm)
     }
 }
 
@@ -173,11 +194,11 @@ impl Emitter {
 
 /// Direction about the axis `n` with the distribution's pdf.
 #[inline]
-fn direction(d: Distribution, n: Vec3A, s: &mut Sampler) -> Vec3A {
+fn direction(d: Distribution, n: Vec3A, u1: f32, u2: f32) -> Vec3A {
     match d {
-        Distribution::Lambertian => cosine_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
-        Distribution::Isotropic => uniform_hemisphere(n, s.uniform_f32(), s.uniform_f32()),
+        Distribution::Lambertian => cosine_hemisphere(n, u1, u2),
+        Distribution::Isotropic => uniform_hemisphere(n, u1, u2),
         Distribution::Collimated => n,
-        Distribution::CosinePower(e) => cosine_power_lobe(n, e as f32, s.uniform_f32(), s.uniform_f32()),
+        Distribution::CosinePower(e) => cosine_power_lobe(n, e as f32, u1, u2),
     }
 }

@@ -108,6 +108,8 @@ pub struct FilmBatch {
     pub splats: Vec<Splat>,
     /// The photon now being traced (its index within the transport batch).
     pub photon: u32,
+    /// Visibility rays cast toward the camera.
+    pub shadow_rays: u64,
 }
 
 impl FilmBatch {

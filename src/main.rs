@@ -11,6 +11,7 @@ use photon::error::Error;
 use photon::output;
 use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::{self, LightShape, Scene};
+use photon::transport::{Estimator, TransportOptions};
 
 #[derive(Parser)]
 #[command(name = "photon", version, about = "Forward Monte Carlo photon tracer: how much light lands where")]
@@ -48,6 +49,15 @@ enum Command {
         /// Skip the camera image.
         #[arg(long = "no-image")]
         no_image: bool,
+        /// Absorption estimator: expected-value weighting (default) or analog survival.
+        #[arg(long, value_enum, default_value_t = Estimator::Expected)]
+        estimator: Estimator,
+        /// Stratify each batch's emission samples (Latin hypercube).
+        #[arg(long)]
+        stratified: bool,
+        /// One wavelength per photon in the image instead of four hero wavelengths.
+        #[arg(long = "no-hero")]
+        no_hero: bool,
         /// No progress bar and no table.
         #[arg(long)]
         quiet: bool,
@@ -74,7 +84,22 @@ fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
-        Command::Run { scene, out, photons, seed, threads, rel_error, tally, time, max_bounces, no_image, quiet } => {
+        Command::Run {
+            scene,
+            out,
+            photons,
+            seed,
+            threads,
+            rel_error,
+            tally,
+            time,
+            max_bounces,
+            no_image,
+            quiet,
+            estimator,
+            stratified,
+            no_hero,
+        } => {
             let opts = RunOptions {
                 photons,
                 seed,
@@ -85,6 +110,7 @@ fn main() -> ExitCode {
                 time_s: time,
                 progress: !quiet,
                 no_image,
+                transport: TransportOptions { estimator, stratified, hero: !no_hero },
             };
             run(&scene, out, &opts, quiet)
         }

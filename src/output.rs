@@ -56,14 +56,13 @@ pub struct RunInfo {
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
     let t = &r.tallies;
-    let w = t.watts_per_weight(r.emitted_w) * t.photons as f64;
     let surfaces = scene
         .surfaces
         .iter()
         .enumerate()
         .map(|(i, s)| {
-            let (incident_w, incident_w_stderr) = t.incident[i].estimate(t.photons, w);
-            let (absorbed_w, absorbed_w_stderr) = t.absorbed[i].estimate(t.photons, w);
+            let (incident_w, incident_w_stderr) = r.incident(i);
+            let (absorbed_w, absorbed_w_stderr) = r.absorbed(i);
             let rel_error = if incident_w > 0.0 { incident_w_stderr / incident_w } else { 0.0 };
             SurfaceRow {
                 name: s.name.clone(),

@@ -11,7 +11,7 @@ use crate::error::Error;
 use crate::film::{CameraModel, Film};
 use crate::scene::Scene;
 use crate::tally::Tallies;
-use crate::transport::Kernel;
+use crate::transport::{Kernel, TransportOptions};
 
 /// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
 pub const BATCH_PHOTONS: u64 = 16_384;
@@ -31,6 +31,7 @@ pub struct RunOptions {
     pub progress: bool,
     /// Skip the camera film entirely.
     pub no_image: bool,
+    pub transport: TransportOptions,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
@@ -51,6 +52,9 @@ pub struct RunResult {
     pub stop_reason: StopReason,
     /// The light-traced film, when the scene has a camera and the image was not switched off.
     pub film: Option<Film>,
+    pub transport: TransportOptions,
+    /// Whether the film used hero wavelengths.
+    pub hero: bool,
 }
 
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
@@ -121,7 +125,8 @@ pub fn simulate(
     let emitter = Emitter::new(scene);
     let seed = scene.simulation.seed;
     let camera = scene.camera.as_ref().filter(|_| scene.effects.camera).map(CameraModel::new);
-    let kernel = Kernel { scene, emitter: &emitter, camera: camera.as_ref() };
+    let kernel = Kernel { scene, emitter: &emitter, camera: camera.as_ref(), options: opts.transport };
+    let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
     let start = Instant::now();
 
@@ -147,7 +152,9 @@ pub fn simulate(
             }
             if let Some(target) = opts.rel_error {
                 if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
-                    && tallies.worst_rel_error(rel_error_surfaces).is_some_and(|e| e <= target)
+                    && tallies
+                        .worst_rel_error(rel_error_surfaces, opts.transport.error_model())
+                        .is_some_and(|e| e <= target)
                 {
                     stop = StopReason::RelError;
                     break 'rounds;
@@ -178,6 +185,8 @@ pub fn simulate(
         wall_seconds: start.elapsed().as_secs_f64(),
         stop_reason: stop,
         film,
+        transport: opts.transport,
+        hero,
     })
 }
 
@@ -197,4 +206,16 @@ fn make_progress(enabled: bool, total: Option<u64>) -> Option<indicatif::Progres
         ),
     };
     Some(bar)
+}
+
+impl RunResult {
+    /// (incident W, standard error) of surface `i`.
+    pub fn incident(&self, i: usize) -> (f64, f64) {
+        self.tallies.incident_estimate(i, self.emitted_w, self.transport.error_model())
+    }
+
+    /// (absorbed W, standard error) of surface `i`.
+    pub fn absorbed(&self, i: usize) -> (f64, f64) {
+        self.tallies.absorbed_estimate(i, self.emitted_w, self.transport.error_model())
+    }
 }

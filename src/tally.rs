@@ -80,6 +80,43 @@ pub struct Tallies {
     /// Scattering events per history: Σk and Σk², for the mean path length and its error.
     pub scatterings: u64,
     pub scatterings_sq: u64,
+    pub counters: Counters,
+    /// Σ_b S_b²/n_b over merged batches (S_b a batch's sum, n_b its photons), per surface, for the
+    /// between-batch error that stratified emission needs (its histories are not independent).
+    pub batch_sq_incident: Vec<f64>,
+    pub batch_sq_absorbed: Vec<f64>,
+    pub batches: u64,
+}
+
+/// Which spread a standard error is computed from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ErrorModel {
+    /// Independent photon histories (plain sampling).
+    Histories,
+    /// Independent batches (stratified sampling correlates histories within a batch).
+    Batches,
+}
+
+/// Work done, for benchmarks and for showing which physics ran (not for any estimate).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct Counters {
+    /// Closest-hit rays traced (emission and scattering).
+    pub rays: u64,
+    /// Visibility rays toward the camera.
+    pub shadow_rays: u64,
+    /// Fresnel terms evaluated (one per dielectric hit).
+    pub fresnel_evaluations: u64,
+    /// Splats that reached the film.
+    pub splats: u64,
+}
+
+impl Counters {
+    pub fn merge(&mut self, o: &Counters) {
+        self.rays += o.rays;
+        self.shadow_rays += o.shadow_rays;
+        self.fresnel_evaluations += o.fresnel_evaluations;
+        self.splats += o.splats;
+    }
 }
 
 impl Tallies {
@@ -92,11 +129,25 @@ impl Tallies {
             truncated: 0.0,
             scatterings: 0,
             scatterings_sq: 0,
+            counters: Counters::default(),
+            batch_sq_incident: vec![0.0; surfaces],
+            batch_sq_absorbed: vec![0.0; surfaces],
+            batches: 0,
         }
     }
 
     /// Adds a batch. Called in batch-index order, so the f64 sums are the same for any thread count.
     pub fn merge(&mut self, b: &Tallies) {
+        if b.photons > 0 {
+            let n = b.photons as f64;
+            for (acc, m) in self.batch_sq_incident.iter_mut().zip(&b.incident) {
+                *acc += m.sum * m.sum / n;
+            }
+            for (acc, m) in self.batch_sq_absorbed.iter_mut().zip(&b.absorbed) {
+                *acc += m.sum * m.sum / n;
+            }
+            self.batches += 1;
+        }
         self.photons += b.photons;
         for (a, x) in self.incident.iter_mut().zip(&b.incident) {
             a.merge(x);
@@ -108,6 +159,7 @@ impl Tallies {
         self.truncated += b.truncated;
         self.scatterings += b.scatterings;
         self.scatterings_sq += b.scatterings_sq;
+        self.counters.merge(&b.counters);
     }
 
     /// Power per unit of photon weight: every photon is born with weight 1 and power Φ/N.
@@ -117,6 +169,29 @@ impl Tallies {
         } else {
             emitted_w / self.photons as f64
         }
+    }
+
+    /// (mean, standard error) of a per-history score times `scale`, under `model`. With fewer than
+    /// two batches the batch model has no spread to use and falls back to histories (conservative
+    /// for stratified sampling).
+    fn estimate(&self, m: &Moments, batch_sq: f64, scale: f64, model: ErrorModel) -> (f64, f64) {
+        let (mean, se) = m.estimate(self.photons, scale);
+        if model == ErrorModel::Histories || self.batches < 2 {
+            return (mean, se);
+        }
+        // Per-photon variance from batch means m_b = S_b/n_b: Σ n_b (m_b − m)²/(K − 1).
+        let (n, k) = (self.photons as f64, self.batches as f64);
+        let m_hat = m.sum / n;
+        let var = ((batch_sq - n * m_hat * m_hat) / (k - 1.0)).max(0.0) / n;
+        (mean, var.sqrt() * scale)
+    }
+
+    pub fn incident_estimate(&self, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
+        self.estimate(&self.incident[surface], self.batch_sq_incident[surface], scale, model)
+    }
+
+    pub fn absorbed_estimate(&self, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
+        self.estimate(&self.absorbed[surface], self.batch_sq_absorbed[surface], scale, model)
     }
 
     /// Mean scatterings per photon and its standard error.
@@ -136,11 +211,10 @@ impl Tallies {
 
     /// Largest relative standard error over the chosen surfaces' non-zero estimates
     /// (incident and absorbed); None when none is non-zero yet.
-    pub fn worst_rel_error(&self, surfaces: &[usize]) -> Option<f64> {
+    pub fn worst_rel_error(&self, surfaces: &[usize], model: ErrorModel) -> Option<f64> {
         let mut worst: Option<f64> = None;
         for &s in surfaces {
-            for m in [&self.incident[s], &self.absorbed[s]] {
-                let (mean, se) = m.estimate(self.photons, 1.0);
+            for (mean, se) in [self.incident_estimate(s, 1.0, model), self.absorbed_estimate(s, 1.0, model)] {
                 if mean > 0.0 {
                     worst = Some(worst.map_or(se / mean, |w: f64| w.max(se / mean)));
                 }

@@ -1,40 +1,110 @@
 //! The photon loop: first hit → tally the arrival → absorb or scatter → next ray, until the
-//! photon is absorbed, escapes, or reaches the bounce cap. Generic over the effects a scene
-//! calls for: a grey scene never draws a wavelength, a run without a film never splats.
+//! photon is absorbed, escapes, or reaches the bounce cap. Monomorphised over the effects and
+//! estimator a run calls for, so a grey scene never draws a wavelength, a run without a film
+//! never splats, and neither pays a branch per photon for the other's work.
 
 use glam::Vec3A;
 
-use crate::emitter::Emitter;
+use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{offset_ray_origin, Geometry};
-use crate::material::{interact, Interaction};
+use crate::material::{albedo, lobe_factor, sample_scatter};
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
 use crate::tally::{HistoryScores, Tallies};
 
-/// What a batch needs besides the scene: the emitter, and the camera when the film is on.
+/// How absorption is estimated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Estimator {
+    /// A photon survives a hit with probability equal to the albedo; its whole weight ends in one place.
+    Analog,
+    /// Expected-value absorption: at each hit the share weight·(1 − albedo) is tallied as absorbed
+    /// and the photon carries weight·albedo on. Below `ROULETTE_WEIGHT` it plays Russian roulette
+    /// with the albedo as survival probability, so the lost weight is booked as absorbed where it
+    /// dies and the ledger stays exact.
+    #[default]
+    Expected,
+}
+
+/// Weight below which the expected-value estimator switches to roulette.
+pub const ROULETTE_WEIGHT: f64 = 0.1;
+
+/// Options of the transport itself (the defaults were chosen by measurement; see the README).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct TransportOptions {
+    pub estimator: Estimator,
+    /// Latin-hypercube stratification of each batch's emission samples.
+    pub stratified: bool,
+    /// Hero-wavelength spectral sampling for the image (spectral scenes without dispersion).
+    pub hero: bool,
+}
+
+impl TransportOptions {
+    /// Stratified batches correlate their histories: errors must come from the batches' spread.
+    pub fn error_model(&self) -> crate::tally::ErrorModel {
+        if self.stratified {
+            crate::tally::ErrorModel::Batches
+        } else {
+            crate::tally::ErrorModel::Histories
+        }
+    }
+}
+
+impl Default for TransportOptions {
+    fn default() -> Self {
+        TransportOptions { estimator: Estimator::Expected, stratified: false, hero: true }
+    }
+}
+
+/// What a batch needs besides the scene: the emitter, the camera when the film is on, options.
 pub struct Kernel<'a> {
     pub scene: &'a Scene,
     pub emitter: &'a Emitter,
     pub camera: Option<&'a CameraModel>,
+    pub options: TransportOptions,
 }
 
 impl Kernel<'_> {
-    /// Traces one batch, dispatching once to the kernel specialised for the scene's effects.
+    /// Whether hero wavelengths are used: spectral transport with a film and no dispersion.
+    pub fn uses_hero(&self) -> bool {
+        let fx = &self.scene.effects;
+        self.options.hero && fx.spectral && !fx.dispersion && self.camera.is_some()
+    }
+
+    /// Traces one batch, dispatching once to the kernel specialised for the run.
     pub fn trace_batch(&self, batch: u64, count: u64) -> (Tallies, Option<FilmBatch>) {
         let mut film = self.camera.map(|_| FilmBatch::default());
-        let tallies = match (self.scene.effects.spectral, film.as_mut()) {
-            (false, None) => self.trace::<false, false>(batch, count, None),
-            (true, None) => self.trace::<true, false>(batch, count, None),
-            (false, Some(f)) => self.trace::<false, true>(batch, count, Some(f)),
-            (true, Some(f)) => self.trace::<true, true>(batch, count, Some(f)),
+        let expected = self.options.estimator == Estimator::Expected;
+        let spectral = self.scene.effects.spectral;
+        let f = film.as_mut();
+        macro_rules! go {
+            ($s:literal, $c:literal, $e:literal, $h:literal) => {
+                self.trace::<$s, $c, $e, $h>(batch, count, f)
+            };
+        }
+        let mut tallies = match (spectral, self.camera.is_some(), expected, self.uses_hero()) {
+            (false, false, false, _) => go!(false, false, false, false),
+            (false, false, true, _) => go!(false, false, true, false),
+            (false, true, false, _) => go!(false, true, false, false),
+            (false, true, true, _) => go!(false, true, true, false),
+            (true, false, false, _) => go!(true, false, false, false),
+            (true, false, true, _) => go!(true, false, true, false),
+            (true, true, false, false) => go!(true, true, false, false),
+            (true, true, true, false) => go!(true, true, true, false),
+            (true, true, false, true) => go!(true, true, false, true),
+            (true, true, true, true) => go!(true, true, true, true),
         };
+        if let Some(f) = &film {
+            tallies.counters.shadow_rays = f.shadow_rays;
+            tallies.counters.splats = f.splats.len() as u64;
+        }
         (tallies, film)
     }
 
-    /// Traces photons of one batch with the batch's own random stream. Score buffers are
-    /// allocated once per batch; nothing inside the photon loop allocates.
-    fn trace<const SPECTRAL: bool, const CAMERA: bool>(
+    /// Traces the photons of one batch with the batch's own random stream. Buffers are allocated
+    /// once per batch; nothing inside the photon loop allocates.
+    fn trace<const SPECTRAL: bool, const CAMERA: bool, const EXPECTED: bool, const HERO: bool>(
         &self,
         batch: u64,
         count: u64,
@@ -44,33 +114,29 @@ impl Kernel<'_> {
         let geo = &scene.geometry;
         let n_surfaces = scene.surfaces.len();
         let max_bounces = scene.simulation.max_bounces;
+        let range = scene.simulation.wavelength_range_nm;
         let materials: Vec<&Material> = (0..n_surfaces).map(|s| scene.material_of(s)).collect();
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
+        let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
         let mut out = Tallies::new(n_surfaces);
         let mut incident = HistoryScores::new(n_surfaces);
         let mut absorbed = HistoryScores::new(n_surfaces);
 
         for photon in 0..count as u32 {
-            let birth = self.emitter.emit::<SPECTRAL>(geo, &mut s);
-            if let Some(f) = film.as_deref_mut() {
-                f.photon = photon;
-            }
+            let u: EmitSample = match &strata {
+                Some(table) => table[photon as usize],
+                None => std::array::from_fn(|_| s.uniform()),
+            };
+            let birth = self.emitter.emit::<SPECTRAL>(geo, &u);
             let lambda = birth.lambda_nm;
-            let weight = 1.0;
-            if CAMERA {
-                if let (Some(cam), Some(film)) = (self.camera, film.as_deref_mut()) {
-                    splat(
-                        cam,
-                        geo,
-                        film,
-                        birth.point,
-                        birth.point_err,
-                        birth.normal,
-                        birth.prim,
-                        birth.xyz * weight as f32,
-                        |w| self.emitter.direction_pdf(birth.light, birth.axis, w),
-                    );
-                }
+            let mut hero = if HERO { Hero::new(self.emitter, &birth, range) } else { Hero::default() };
+            let mut weight = 1.0f64;
+            if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
+                film.photon = photon;
+                let colour = if HERO { hero.emission_xyz() } else { birth.xyz };
+                splat(cam, geo, film, birth.point, birth.point_err, birth.normal, birth.prim, |w| {
+                    colour * self.emitter.direction_pdf(birth.light, birth.axis, w)
+                });
             }
             let mut origin = birth.origin;
             let mut dir = birth.dir;
@@ -78,6 +144,7 @@ impl Kernel<'_> {
             let mut scatterings = 0u32;
             let mut medium: Option<u32> = None;
             loop {
+                out.counters.rays += 1;
                 let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {
                     out.escaped += weight;
                     break;
@@ -86,55 +153,83 @@ impl Kernel<'_> {
                 let surface = geo.surface[prim];
                 let material = materials[surface as usize];
                 let n = geo.normals[prim];
-                // Beer–Lambert: a photon crossing an absorbing medium over distance t survives with
-                // probability exp(−α t); otherwise the medium absorbs it (tallied to its surface).
-                // The medium is the dielectric the photon last refracted into, or, for a photon born
-                // inside one, the dielectric it now reaches from inside.
                 let is_dielectric = matches!(material, Material::Dielectric { .. });
+
+                // Beer–Lambert: crossing an absorbing medium over distance t, a photon keeps the
+                // fraction exp(−α t) (analog: survives with that probability); the rest is
+                // absorbed by the medium, tallied to its surface. The medium is the dielectric the
+                // photon last refracted into, or, for one born inside, the one it reaches from inside.
                 let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
                 if let Some(m) = segment_medium {
                     if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = materials[m as usize] {
-                        if s.uniform() >= (-alpha.eval(lambda) * hit.t as f64).exp() {
+                        let t = hit.t as f64;
+                        let keep = (-alpha.eval(lambda) * t).exp();
+                        if EXPECTED && weight >= ROULETTE_WEIGHT {
+                            absorbed.add(m, weight * (1.0 - keep));
+                            weight *= keep;
+                        } else if s.uniform() >= keep {
                             absorbed.add(m, weight);
                             break;
                         }
+                        if HERO {
+                            hero.event::<EXPECTED>(|l| {
+                                let k = (-alpha.eval(l) * t).exp();
+                                (k, k)
+                            });
+                        }
                     }
                 }
+
                 incident.add(surface, weight);
                 let (p, err) = geo.hit_point(&hit);
-                if CAMERA {
-                    if let (Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
-                        (self.camera, film.as_deref_mut(), material)
-                    {
-                        // f = ρ/π toward the side the photon came from, τ/π through; times |cosθ_x|.
-                        let n_in = if dir.dot(n) < 0.0 { n } else { -n };
-                        splat(cam, geo, film, p, err, n, hit.prim, birth.xyz * weight as f32, |w| {
-                            let cos = w.dot(n_in);
-                            let f = if cos > 0.0 { reflectance.eval(lambda) } else { transmittance.eval(lambda) };
-                            f as f32 * std::f32::consts::FRAC_1_PI * cos.abs()
-                        });
-                    }
+                if let (true, Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
+                    (CAMERA, self.camera, film.as_deref_mut(), material)
+                {
+                    // f = ρ/π toward the side the photon came from, τ/π through; times |cosθ_x|.
+                    let n_in = if dir.dot(n) < 0.0 { n } else { -n };
+                    splat(cam, geo, film, p, err, n, hit.prim, |w| {
+                        let cos = w.dot(n_in);
+                        let lobe = |l: f64| if cos > 0.0 { reflectance.eval(l) } else { transmittance.eval(l) };
+                        let geometric = cos.abs() * std::f32::consts::FRAC_1_PI;
+                        if HERO {
+                            hero.splat_xyz(lobe) * geometric
+                        } else {
+                            birth.xyz * (weight * lobe(lambda)) as f32 * geometric
+                        }
+                    });
                 }
-                match interact(material, lambda, dir, n, &mut s) {
-                    Interaction::Absorbed => {
-                        absorbed.add(surface, weight);
+
+                // Absorb or carry on.
+                let a = albedo(material, lambda);
+                if EXPECTED && weight >= ROULETTE_WEIGHT {
+                    if a < 1.0 {
+                        absorbed.add(surface, weight * (1.0 - a));
+                    }
+                    if a <= 0.0 {
                         break;
                     }
-                    Interaction::Scattered(new_dir) => {
-                        if scatterings == max_bounces {
-                            out.truncated += weight;
-                            break;
-                        }
-                        scatterings += 1;
-                        if is_dielectric {
-                            // Inside is the side opposite the normal.
-                            medium = (new_dir.dot(n) < 0.0).then_some(surface);
-                        }
-                        origin = offset_ray_origin(p, err, n, new_dir);
-                        dir = new_dir;
-                        skip = hit.prim;
-                    }
+                    weight *= a;
+                } else if !(s.uniform() < a) {
+                    absorbed.add(surface, weight);
+                    break;
                 }
+                out.counters.fresnel_evaluations += is_dielectric as u64;
+                let (new_dir, lobe) = sample_scatter(material, lambda, dir, n, &mut s);
+                if HERO {
+                    hero.event::<EXPECTED>(|l| (lobe_factor(material, lobe, l, dir, n), albedo(material, l)));
+                }
+                if scatterings == max_bounces {
+                    out.truncated += weight;
+                    break;
+                }
+                scatterings += 1;
+                if is_dielectric {
+                    // Inside is the side opposite the normal.
+                    medium = (new_dir.dot(n) < 0.0).then_some(surface);
+                }
+                origin = offset_ray_origin(p, err, n, new_dir);
+                dir = new_dir;
+                skip = hit.prim;
             }
             out.scatterings += scatterings as u64;
             out.scatterings_sq += (scatterings as u64).pow(2);
@@ -146,9 +241,102 @@ impl Kernel<'_> {
     }
 }
 
+/// A Latin hypercube over one batch: in every emission dimension the n photons take one sample
+/// from each of n equal strata, in an independent random order per dimension. Each sample is
+/// still uniform, so every estimator stays unbiased; batches stay independent of each other.
+fn latin_hypercube(n: usize, s: &mut Sampler) -> Vec<EmitSample> {
+    let mut table = vec![[0.0; EMIT_DIMS]; n];
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    for d in 0..EMIT_DIMS {
+        // Fisher–Yates shuffle.
+        for i in (1..n).rev() {
+            let j = (s.uniform() * (i + 1) as f64) as usize;
+            order.swap(i, j.min(i));
+        }
+        for (row, &stratum) in table.iter_mut().zip(&order) {
+            row[d] = (stratum as f64 + s.uniform()) / n as f64;
+        }
+    }
+    table
+}
+
+/// Hero-wavelength bookkeeping (Wilkie et al. 2014, "Hero Wavelength Spectral Sampling"): the
+/// photon's path is sampled at its hero wavelength λ₀; it also carries λ₁..λ₃, rotated by a
+/// quarter of the range. Each λₖ is a sampling technique (as if it had been the hero), and the
+/// balance heuristic gives the contribution of wavelength j as
+///   f(x, λⱼ) / Σₖ p(x, λₖ),  with  f(x, λ) ∝ S(λ)·Π throughput(λ)  and  p(x, λ) ∝ S(λ)·Π probability(λ),
+/// where each event's probability is what technique k's own estimator would have used (albedo
+/// for a survival, factor/albedo for a lobe choice). So each weight is bounded and sums to ≈ 1.
+#[derive(Default)]
+struct Hero {
+    lambda: [f64; 4],
+    /// S(λₖ): the light's relative spectral power.
+    power: [f64; 4],
+    /// Π throughput factors and Π event probabilities at λₖ, and technique k's own weight.
+    throughput: [f64; 4],
+    probability: [f64; 4],
+    technique_weight: [f64; 4],
+    /// Colour weights (x̄, ȳ, z̄)(λₖ)/∫ȳ.
+    colour: [Vec3A; 4],
+}
+
+impl Hero {
+    fn new(emitter: &Emitter, birth: &Birth, range: (f64, f64)) -> Self {
+        let width = range.1 - range.0;
+        let lambda: [f64; 4] =
+            std::array::from_fn(|k| range.0 + (birth.lambda_nm - range.0 + k as f64 * width / 4.0).rem_euclid(width));
+        Hero {
+            lambda,
+            power: lambda.map(|l| emitter.spectral_power(birth.light, l)),
+            throughput: [1.0; 4],
+            probability: [1.0; 4],
+            technique_weight: [1.0; 4],
+            colour: lambda.map(|l| emitter.colour(l)),
+        }
+    }
+
+    /// One event whose throughput factor and albedo at λ are `at(λ)`.
+    #[inline]
+    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(f64) -> (f64, f64)) {
+        for k in 0..4 {
+            let (factor, albedo) = at(self.lambda[k]);
+            self.throughput[k] *= factor;
+            if EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT {
+                self.probability[k] *= if albedo > 0.0 { factor / albedo } else { 0.0 };
+                self.technique_weight[k] *= albedo;
+            } else {
+                // Survival with probability = albedo, then the lobe with factor/albedo.
+                self.probability[k] *= factor;
+            }
+        }
+    }
+
+    fn denominator(&self) -> f64 {
+        (0..4).map(|k| self.power[k] * self.probability[k]).sum()
+    }
+
+    /// XYZ of the emission vertex (before the emission pdf and camera importance).
+    fn emission_xyz(&self) -> Vec3A {
+        let d = self.denominator();
+        (0..4).fold(Vec3A::ZERO, |acc, k| acc + self.colour[k] * (self.power[k] / d) as f32)
+    }
+
+    /// XYZ of a diffuse vertex whose BSDF factor toward the camera at λ is `bsdf(λ)`.
+    #[inline]
+    fn splat_xyz(&self, bsdf: impl Fn(f64) -> f64) -> Vec3A {
+        let d = self.denominator();
+        if !(d > 0.0) {
+            return Vec3A::ZERO;
+        }
+        (0..4).fold(Vec3A::ZERO, |acc, k| {
+            acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf(self.lambda[k]) / d) as f32
+        })
+    }
+}
+
 /// Connects a photon vertex at `p` (error bound `err`, normal `n`, zero for a point light) to the
-/// camera and adds `colour · value(ω) · importance` to its pixel when nothing is in between.
-/// `value(ω)` is the emission pdf or BSDF·|cos| toward the camera (see `film` for the estimator).
+/// camera and adds `value(ω)·importance` to its pixel when nothing is in between. `value(ω)` is
+/// the XYZ-weighted emission pdf or BSDF·|cos| toward the camera (see `film` for the estimator).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn splat(
@@ -159,17 +347,37 @@ fn splat(
     err: Vec3A,
     n: Vec3A,
     prim: u32,
-    colour: Vec3A,
-    value: impl Fn(Vec3A) -> f32,
+    value: impl Fn(Vec3A) -> Vec3A,
 ) {
     let Some(proj) = cam.project(p) else { return };
     let v = value(proj.to_camera);
-    if !(v > 0.0) {
+    if v == Vec3A::ZERO || !v.is_finite() {
         return;
     }
     let origin = if n == Vec3A::ZERO { p } else { offset_ray_origin(p, err, n, proj.to_camera) };
     let distance = (cam.position - origin).length();
+    film.shadow_rays += 1;
     if geo.unoccluded(origin, proj.to_camera, distance, prim) {
-        film.add(proj.pixel, colour * (v * proj.importance));
+        film.add(proj.pixel, v * proj.importance);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn latin_hypercube_fills_every_stratum_once() {
+        let mut s = Sampler::for_batch(3, 0);
+        let n = 257;
+        let table = latin_hypercube(n, &mut s);
+        for d in 0..EMIT_DIMS {
+            let mut seen = vec![false; n];
+            for row in &table {
+                let k = (row[d] * n as f64) as usize;
+                assert!(!seen[k], "stratum {k} of dimension {d} used twice");
+                seen[k] = true;
+            }
+        }
     }
 }

@@ -90,7 +90,7 @@ impl Ctx {
 /// (incident, stderr) of surface `name`.
 fn incident(scene: &Scene, r: &RunResult, name: &str) -> (f64, f64) {
     let i = scene.surfaces.iter().position(|s| s.name == name).expect("case names its surfaces");
-    r.tallies.incident[i].estimate(r.tallies.photons, r.emitted_w)
+    r.incident(i)
 }
 
 fn case(name: &str, (measured, stderr): (f64, f64), expected: f64, rel_target: f64, note: &str) -> CaseResult {
@@ -307,7 +307,7 @@ fn furnaces(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error> {
             0.003 * ctx.loose,
             "P/(1-rho)",
         ));
-        let absorbed = r.tallies.absorbed[0].estimate(r.tallies.photons, r.emitted_w).0;
+        let absorbed = r.absorbed(0).0;
         // Every photon ends absorbed by the sphere; only f64 rounding of the sum may differ.
         out.push(CaseResult {
             name: format!("furnace rho={rho}: absorbed"),

@@ -13,9 +13,15 @@ use std::sync::atomic::AtomicBool;
 use photon::output::{self, Flux};
 use photon::run::{apply_options, simulate, RunOptions, RunResult};
 use photon::scene::{load_str, Scene};
+use photon::transport::TransportOptions;
 
-fn run_scene(mut s: Scene, photons: u64, seed: u64) -> (Scene, RunResult) {
-    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
+fn run_scene(s: Scene, photons: u64, seed: u64) -> (Scene, RunResult) {
+    run_scene_with(s, photons, seed, TransportOptions::default())
+}
+
+fn run_scene_with(mut s: Scene, photons: u64, seed: u64, transport: TransportOptions) -> (Scene, RunResult) {
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
     let chosen = apply_options(&mut s, &opts).unwrap();
     let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
     (s, r)
@@ -169,13 +175,20 @@ fn grazing_beam_at_89_9_degrees_hits_the_plate_exactly_once() {
     let s = scene(&toml);
     let n = s.geometry.normals[s.geometry.surface.iter().position(|&x| x == 1).unwrap()];
     assert!((n.x as f64 - d[0]).abs() < 1e-5 && (n.y as f64 - d[1]).abs() < 1e-5, "beam normal {n}");
-    let (s, r) = run_scene(s, 200_000, 3);
+    // Analog: a photon scatters with probability ρ.
+    let (s, r) = run_scene_with(s, 200_000, 3, common::ANALOG);
     let f = output::flux(&s, &r);
     let plate = surface(&f, "plate");
     assert_eq!(plate.incident_w, 1.0, "every grazing photon must land exactly once");
     let (mean, _) = r.tallies.mean_scatterings();
     assert_z("mean scatterings", mean, 0.7, (0.7f64 * 0.3 / 200_000.0).sqrt(), 4.0);
     assert_all_finite(&f);
+    // Expected value: every photon scatters exactly once, carrying 0.7 of its weight away.
+    let (s, r) = run_scene(s, 200_000, 3);
+    let f = output::flux(&s, &r);
+    assert_eq!(surface(&f, "plate").incident_w, 1.0);
+    assert_eq!(r.tallies.mean_scatterings().0, 1.0);
+    assert!((surface(&f, "plate").absorbed_w - 0.3).abs() < 1e-12);
 }
 
 #[test]

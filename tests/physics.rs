@@ -3,7 +3,7 @@
 //! so a failure means a bias, not bad luck; the photon counts make a 1–2 % bias fail.
 
 mod common;
-use common::{assert_z, run, surface};
+use common::{assert_z, run, run_with, surface, ANALOG};
 
 use std::f64::consts::PI;
 
@@ -56,7 +56,18 @@ fn furnace_incident_is_power_over_one_minus_albedo() {
     // In a closed enclosure each photon arrives K times, K geometric with mean 1/(1−ρ), whatever
     // the shape: incident = P/(1−ρ). Every photon ends absorbed by the sphere: absorbed = P.
     for (rho, photons) in [(0.5, 100_000), (0.9, 60_000)] {
-        let f = run(&furnace(rho), photons, 3);
+        // Both estimators, then the analog one's error against its own closed form.
+        let expected_value = run(&furnace(rho), photons / 4, 4);
+        let s = surface(&expected_value, "sphere");
+        assert_z(
+            &format!("furnace rho={rho} incident (expected)"),
+            s.incident_w,
+            3.0 / (1.0 - rho),
+            s.incident_w_stderr,
+            4.0,
+        );
+        assert!((s.absorbed_w - 3.0).abs() <= 1e-12 * 3.0, "absorbed {}", s.absorbed_w);
+        let f = run_with(&furnace(rho), photons, 3, ANALOG);
         let s = surface(&f, "sphere");
         assert_z(&format!("furnace rho={rho} incident"), s.incident_w, 3.0 / (1.0 - rho), s.incident_w_stderr, 4.0);
         assert!((s.absorbed_w - 3.0).abs() <= 1e-12 * 3.0, "absorbed {}", s.absorbed_w);

@@ -7,15 +7,24 @@ use std::sync::atomic::AtomicBool;
 use photon::output::{self, Flux, SurfaceRow};
 use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::{load_str, Scene};
+use photon::transport::{Estimator, TransportOptions};
+
+pub const ANALOG: TransportOptions = TransportOptions { estimator: Estimator::Analog, stratified: false, hero: true };
 
 pub fn scene(toml: &str) -> Scene {
     load_str(Path::new("tests/inline.toml"), toml).unwrap_or_else(|e| panic!("scene should load: {e}"))
 }
 
-/// Runs `toml` with `photons` photons and `seed` on 2 threads; returns the flux table.
+/// Runs `toml` with `photons` photons and `seed` on 2 threads, default transport; returns the flux table.
 pub fn run(toml: &str, photons: u64, seed: u64) -> Flux {
+    run_with(toml, photons, seed, TransportOptions::default())
+}
+
+/// The same with the given transport options.
+pub fn run_with(toml: &str, photons: u64, seed: u64, transport: TransportOptions) -> Flux {
     let mut s = scene(toml);
-    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
     let chosen = apply_options(&mut s, &opts).unwrap();
     let result = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
     output::flux(&s, &result)
