@@ -31,6 +31,12 @@ pub struct Flux {
 }
 
 #[derive(Serialize, Clone, Debug)]
+pub struct SurfaceFom {
+    pub name: String,
+    pub fom: f64,
+}
+
+#[derive(Serialize, Clone, Debug)]
 pub struct RunInfo {
     pub version: String,
     pub scene: String,
@@ -48,7 +54,13 @@ pub struct RunInfo {
     pub mean_scatterings_stderr: f64,
     /// Per surface, the figure of merit 1/(rel_error² · seconds): the accuracy a second buys.
     /// Here rather than in flux.json, whose numbers must not depend on timing.
-    pub fom: Vec<(String, f64)>,
+    pub fom: Vec<SurfaceFom>,
+    /// Work done: rays, visibility rays, Fresnel evaluations, splats; and rays per second.
+    pub counters: crate::tally::Counters,
+    pub rays_per_second: f64,
+    /// The transport options and whether the image used hero wavelengths.
+    pub transport_options: crate::transport::TransportOptions,
+    pub hero_wavelengths: bool,
     /// Mean Y over the image and its standard error, when an image was made.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_mean_y: Option<(f64, f64)>,
@@ -89,7 +101,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
             } else {
                 0.0
             };
-            (s.name.clone(), fom)
+            SurfaceFom { name: s.name.clone(), fom }
         })
         .collect();
     RunInfo {
@@ -107,6 +119,14 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         max_bounces: scene.simulation.max_bounces,
         fom,
         image_mean_y: None,
+        counters: r.tallies.counters,
+        rays_per_second: if r.wall_seconds > 0.0 {
+            (r.tallies.counters.rays + r.tallies.counters.shadow_rays) as f64 / r.wall_seconds
+        } else {
+            0.0
+        },
+        transport_options: r.transport,
+        hero_wavelengths: r.hero,
         mean_scatterings: r.tallies.mean_scatterings().0,
         mean_scatterings_stderr: r.tallies.mean_scatterings().1,
     }
