@@ -6,6 +6,7 @@
 //! `run` (batches, ordered reduction, stopping) → `output` (atomic files).
 
 pub mod color;
+pub mod converge;
 pub mod emitter;
 pub mod error;
 pub mod film;

@@ -64,6 +64,34 @@ enum Command {
     },
     /// Load and check a scene; print its surfaces, lights, triangle count, power and effects.
     Info { scene: PathBuf },
+    /// Run a scene at doubling photon counts within a time budget: error against photons and seconds.
+    Converge {
+        scene: PathBuf,
+        /// Surface to follow (default: the scene's [reference] surface, else the one receiving most).
+        #[arg(long)]
+        tally: Option<String>,
+        /// Wall-clock budget in seconds.
+        #[arg(long, default_value_t = 20.0)]
+        budget: f64,
+        /// Known incident power of the tally (W), overriding the scene's [reference].
+        #[arg(long)]
+        reference: Option<f64>,
+        /// Output folder for convergence.csv and convergence.png (default out/<scene-stem>/).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        #[arg(long)]
+        seed: Option<u64>,
+        #[arg(long)]
+        threads: Option<usize>,
+        #[arg(long, value_enum, default_value_t = Estimator::Expected)]
+        estimator: Estimator,
+        #[arg(long)]
+        stratified: bool,
+        #[arg(long = "no-hero")]
+        no_hero: bool,
+        #[arg(long = "no-image")]
+        no_image: bool,
+    },
     /// Run the built-in closed-form cases; exit 0 only if every case passes.
     Validate {
         /// Smaller runs (under a minute on 2 cores) with looser error targets.
@@ -116,6 +144,29 @@ fn main() -> ExitCode {
         }
         Command::Info { scene } => info(&scene),
         Command::Validate { quick, threads } => validate(quick, threads),
+        Command::Converge {
+            scene,
+            tally,
+            budget,
+            reference,
+            out,
+            seed,
+            threads,
+            estimator,
+            stratified,
+            no_hero,
+            no_image,
+        } => {
+            let opts = RunOptions {
+                seed,
+                threads,
+                no_image,
+                progress: false,
+                transport: TransportOptions { estimator, stratified, hero: !no_hero },
+                ..Default::default()
+            };
+            converge(&scene, out, &opts, tally.as_deref(), reference, budget)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -174,6 +225,36 @@ fn validate(quick: bool, threads: Option<usize>) -> Result<(), Error> {
     } else {
         Err(Error::Other("some validation cases failed".into()))
     }
+}
+
+fn converge(
+    scene_path: &Path,
+    out: Option<PathBuf>,
+    opts: &RunOptions,
+    tally: Option<&str>,
+    reference: Option<f64>,
+    budget: f64,
+) -> Result<(), Error> {
+    if !(budget > 0.0 && budget.is_finite()) {
+        return Err(Error::Usage(format!("--budget must be a positive number of seconds, found {budget}")));
+    }
+    let mut scene = load_warn(scene_path)?;
+    if let Some(name) = tally {
+        if !scene.surfaces.iter().any(|s| s.name == name) {
+            return Err(Error::Usage(format!("--tally {name}: no surface of that name")));
+        }
+    }
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
+    let c = photon::converge::converge(&mut scene, opts, tally, reference, budget)?;
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
+    print!("{}", c.table());
+    output::write_atomic(&out_dir, "convergence.csv", c.csv().as_bytes())?;
+    let tmp = out_dir.join(format!(".convergence.tmp{}.png", std::process::id()));
+    c.plot(&tmp, &format!("{}: error against time", scene.stem()))?;
+    std::fs::rename(&tmp, out_dir.join("convergence.png"))
+        .map_err(|e| Error::Other(format!("cannot write convergence.png: {e}")))?;
+    println!("wrote {}", out_dir.display());
+    Ok(())
 }
 
 /// Loads a scene and prints its warnings to stderr.

@@ -261,3 +261,12 @@ pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Erro
     }
     write_atomic(dir, "image.png", &bytes)
 }
+
+/// The plots' font, embedded (DejaVu Sans, see assets/fonts/) so no system font is needed.
+pub fn register_plot_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let font: &'static [u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+        let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, font);
+    });
+}

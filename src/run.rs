@@ -117,6 +117,33 @@ pub fn simulate(
     rel_error_surfaces: &[usize],
     interrupt: &AtomicBool,
 ) -> Result<RunResult, Error> {
+    simulate_observed(scene, opts, rel_error_surfaces, interrupt, &mut |_| {})
+}
+
+/// The state of a run after one more batch was merged, for observers such as `converge`.
+pub struct Progress<'a> {
+    pub tallies: &'a Tallies,
+    pub film: Option<&'a Film>,
+    pub emitted_w: f64,
+    pub threads: usize,
+}
+
+impl Progress<'_> {
+    /// The batches' trace time shared out over the threads: the wall time these photons cost,
+    /// free of the granularity of rounds (batches merged in one round finish together).
+    pub fn seconds(&self) -> f64 {
+        self.tallies.counters.trace_seconds / self.threads as f64
+    }
+}
+
+/// `simulate`, calling `observer` after every merged batch (in batch order).
+pub fn simulate_observed(
+    scene: &Scene,
+    opts: &RunOptions,
+    rel_error_surfaces: &[usize],
+    interrupt: &AtomicBool,
+    observer: &mut dyn FnMut(Progress),
+) -> Result<RunResult, Error> {
     let threads = opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -150,6 +177,7 @@ pub fn simulate(
             if let (Some(film), Some(f)) = (film.as_mut(), f) {
                 film.merge(f, t.photons);
             }
+            observer(Progress { tallies: &tallies, film: film.as_ref(), emitted_w: emitter.total_power_w, threads });
             if let Some(target) = opts.rel_error {
                 if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
                     && tallies

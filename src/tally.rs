@@ -108,6 +108,8 @@ pub struct Counters {
     pub fresnel_evaluations: u64,
     /// Splats that reached the film.
     pub splats: u64,
+    /// Seconds the batches took to trace, summed over batches (thread time, not wall time).
+    pub trace_seconds: f64,
 }
 
 impl Counters {
@@ -116,6 +118,7 @@ impl Counters {
         self.shadow_rays += o.shadow_rays;
         self.fresnel_evaluations += o.fresnel_evaluations;
         self.splats += o.splats;
+        self.trace_seconds += o.trace_seconds;
     }
 }
 

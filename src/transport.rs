@@ -74,6 +74,7 @@ impl Kernel<'_> {
 
     /// Traces one batch, dispatching once to the kernel specialised for the run.
     pub fn trace_batch(&self, batch: u64, count: u64) -> (Tallies, Option<FilmBatch>) {
+        let start = std::time::Instant::now();
         let mut film = self.camera.map(|_| FilmBatch::default());
         let expected = self.options.estimator == Estimator::Expected;
         let spectral = self.scene.effects.spectral;
@@ -99,6 +100,7 @@ impl Kernel<'_> {
             tallies.counters.shadow_rays = f.shadow_rays;
             tallies.counters.splats = f.splats.len() as u64;
         }
+        tallies.counters.trace_seconds = start.elapsed().as_secs_f64();
         (tallies, film)
     }
 

@@ -137,6 +137,9 @@ fn rel_error_stop_is_reproducible_from_the_recorded_photon_count() {
     assert_eq!(run["stop_reason"], "rel_error");
     let receiver = &flux["surfaces"][0];
     assert!(receiver["rel_error"].as_f64().unwrap() <= 0.01);
+    // And the answer is right: P·F₁₂ = 10 W × 0.199825 (Howell C-11, a = c = 1), within 4σ.
+    let (w, se) = (receiver["incident_w"].as_f64().unwrap(), receiver["incident_w_stderr"].as_f64().unwrap());
+    assert!(((w - 1.99825) / se).abs() < 4.0, "{w} ± {se}");
     let photons = run["photons"].as_u64().unwrap();
     assert!(photons < 1_000_000 && photons % 16_384 == 0, "{photons}");
     let again = temp_dir("relerr-again");
@@ -179,5 +182,56 @@ fn ctrl_c_writes_the_finished_batches_with_stop_reason_interrupted() {
         serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
     assert_eq!(flux["photons"].as_u64().unwrap(), photons);
     assert_eq!(flux["ledger"]["absorbed_w"].as_f64().unwrap(), 1.0);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn time_budget_stops_within_a_round_of_batches() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furnace.toml");
+    let out = temp_dir("time");
+    let o = photon()
+        .arg("run")
+        .arg(&scene)
+        .arg("--out")
+        .arg(&out)
+        .args(["--time", "2", "--threads", "2", "--quiet"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    assert_eq!(run["stop_reason"], "time");
+    let wall = run["wall_seconds"].as_f64().unwrap();
+    // The budget is checked after each round of 2 × threads batches: the run ends at most one
+    // round past 2 s (a round's length follows from the measured rate), plus scheduling slack.
+    let round = 4.0 * 16_384.0 / run["photons_per_second"].as_f64().unwrap();
+    assert!(wall >= 2.0 && wall <= 2.0 + round + 0.5, "wall {wall} s, round {round} s");
+    assert_eq!(run["photons"].as_u64().unwrap() % 16_384, 0);
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn converge_tabulates_doubling_runs_against_the_closed_form() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/parallel_plates.toml");
+    let out = temp_dir("converge");
+    let o = photon().arg("converge").arg(&scene).arg("--out").arg(&out).args(["--budget", "1.5"]).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("closed form from the scene"), "{stdout}");
+    assert!(out.join("convergence.png").is_file());
+    let csv = std::fs::read_to_string(out.join("convergence.csv")).unwrap();
+    let rows: Vec<Vec<f64>> =
+        csv.lines().skip(1).map(|l| l.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect()).collect();
+    assert!(rows.len() >= 4, "{csv}");
+    for (k, r) in rows.iter().enumerate() {
+        let (photons, estimate, rel) = (r[0], r[2], r[3]);
+        if k + 1 < rows.len() {
+            assert_eq!(photons, 16_384.0 * 2f64.powi(k as i32), "doubling photon counts");
+        }
+        // Each row's estimate lies within 4 standard errors of P·F₁₂.
+        assert!(((estimate - 1.99825) / (rel * estimate)).abs() < 4.0, "row {k}: {r:?}");
+        // rel_error·√N is the per-photon relative spread: the same for every row (Bernoulli with
+        // F = 0.2: √((1−F)/F) = 2), up to the noise of its own estimate.
+        assert!((rel * photons.sqrt() / 2.0 - 1.0).abs() < 0.1, "row {k}: {r:?}");
+    }
     std::fs::remove_dir_all(&out).unwrap();
 }

@@ -215,6 +215,10 @@ impl<'s, 'v> Table<'s, 'v> {
         }
     }
 
+    pub fn str(&self, key: &str) -> R<Option<String>> {
+        self.with(key, |n| n.str().map(str::to_string))
+    }
+
     pub fn vec3(&self, key: &str) -> R<Option<[f64; 3]>> {
         self.with(key, |n| n.vec3())
     }

@@ -14,7 +14,7 @@ use crate::error::{Error, InputError};
 use crate::geometry::Geometry;
 use crate::spectrum::Spectrum;
 
-const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights"];
+const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights", "reference"];
 
 /// Largest coordinate accepted, in metres: far beyond any real scene, and small enough that
 /// the BVH's single-precision bounds and surface areas cannot overflow.
@@ -389,6 +389,19 @@ impl<'s> Loader<'s> {
                 }
             }
         }
+        // An optional known answer, for `photon converge` to measure the observed error against.
+        let reference = root.with("reference", |n| {
+            let t = n.table()?;
+            t.allow(&["surface", "incident_w", "note"])?;
+            let name = t.req_str("surface")?;
+            let surface = surfaces
+                .iter()
+                .position(|s| s.name == name)
+                .ok_or_else(|| t.err_at("surface", format!("no surface named \"{name}\"")))?;
+            let incident_w = t.req_f64("incident_w")?;
+            let note = t.str("note")?.unwrap_or_default();
+            Ok(Reference { surface, incident_w, note })
+        })?;
         let geometry = Geometry::build(tris, tri_surface);
         Ok(Scene {
             path: path.to_path_buf(),
@@ -400,6 +413,7 @@ impl<'s> Loader<'s> {
             geometry,
             effects,
             warnings,
+            reference,
         })
     }
 

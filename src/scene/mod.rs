@@ -172,6 +172,16 @@ pub struct Scene {
     pub effects: Effects,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
+    /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
+    pub reference: Option<Reference>,
+}
+
+/// `[reference] surface = "…", incident_w = …, note = "…"`: a closed-form value to converge to.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub surface: usize,
+    pub incident_w: f64,
+    pub note: String,
 }
 
 impl Scene {

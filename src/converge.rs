@@ -1,0 +1,329 @@
+//! `photon converge`: what accuracy costs in time. One run is observed at doubling photon counts
+//! (1, 2, 4, … batches: the batches of a shorter run are exactly the first batches of a longer
+//! one), and each row gives the tally's estimate, its relative standard error, the error actually
+//! observed against a reference (`--reference`, the scene's `[reference]` closed form, or else an
+//! independent run with another seed and the same budget), and the figure of merit
+//! 1/(rel_error²·seconds), flat when the error falls as N^(−1/2). With a camera, the image's
+//! relative RMSE against the independent run's image as well (that noise floor is reached when
+//! a row's photons approach the reference's).
+//! Seconds are the batches' trace time divided by the threads (batches merged in one round
+//! finish at one wall-clock instant, which would blur the first rows).
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use plotters::prelude::*;
+
+use crate::error::Error;
+use crate::run::{apply_options, simulate_observed, RunOptions, BATCH_PHOTONS};
+use crate::scene::Scene;
+use crate::tally::Tallies;
+
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub photons: u64,
+    pub seconds: f64,
+    pub estimate_w: f64,
+    pub rel_stderr: f64,
+    /// |estimate − reference| / reference.
+    pub observed_rel_error: f64,
+    pub fom: f64,
+    /// Relative RMSE of the image's Y against the independent reference run's image.
+    pub image_rrmse: Option<f64>,
+}
+
+pub struct Convergence {
+    pub surface: String,
+    pub reference_w: f64,
+    pub reference_source: String,
+    pub rows: Vec<Row>,
+}
+
+struct Snapshot {
+    photons: u64,
+    seconds: f64,
+    incident: Vec<(f64, f64)>,
+    image_y: Option<Vec<f32>>,
+    image_y_var: Option<Vec<f32>>,
+}
+
+fn snapshot(
+    t: &Tallies,
+    film: Option<&crate::film::Film>,
+    emitted_w: f64,
+    seconds: f64,
+    opts: &RunOptions,
+) -> Snapshot {
+    let model = opts.transport.error_model();
+    Snapshot {
+        photons: t.photons,
+        seconds,
+        incident: (0..t.incident.len()).map(|i| t.incident_estimate(i, emitted_w, model)).collect(),
+        image_y: film.map(|f| f.image(emitted_w).xyz.column(1).to_vec()),
+        image_y_var: film.map(|f| f.image(emitted_w).y_var),
+    }
+}
+
+/// Runs `scene` for `budget_s` seconds and tabulates the convergence of surface `tally` (default:
+/// the scene's reference surface, else the surface receiving the most power).
+pub fn converge(
+    scene: &mut Scene,
+    opts: &RunOptions,
+    tally: Option<&str>,
+    reference: Option<f64>,
+    budget_s: f64,
+) -> Result<Convergence, Error> {
+    let mut run_opts = opts.clone();
+    run_opts.time_s = Some(budget_s);
+    run_opts.photons = None;
+    scene.simulation.photons_given = false;
+    let chosen = apply_options(scene, &run_opts)?;
+    let mut snaps: Vec<Snapshot> = Vec::new();
+    let mut next = BATCH_PHOTONS;
+    let result = simulate_observed(scene, &run_opts, &chosen, &AtomicBool::new(false), &mut |p| {
+        if p.tallies.photons >= next {
+            snaps.push(snapshot(p.tallies, p.film, p.emitted_w, p.seconds(), &run_opts));
+            next *= 2;
+        }
+    })?;
+    // The run's final state is the longest run: add it if the doubling sequence missed it.
+    if snaps.last().map(|s| s.photons) != Some(result.tallies.photons) {
+        let seconds = result.tallies.counters.trace_seconds / result.threads as f64;
+        snaps.push(snapshot(&result.tallies, result.film.as_ref(), result.emitted_w, seconds, &run_opts));
+    }
+    if snaps.len() < 3 {
+        return Err(Error::Usage(format!(
+            "the budget of {budget_s} s allowed only {} photon counts; give a longer --budget",
+            snaps.len()
+        )));
+    }
+
+    let surface = match tally {
+        Some(name) => scene
+            .surfaces
+            .iter()
+            .position(|s| s.name == name)
+            .ok_or_else(|| Error::Usage(format!("--tally {name}: no surface of that name")))?,
+        None => match &scene.reference {
+            Some(r) => r.surface,
+            None => {
+                let final_incident = &snaps.last().unwrap().incident;
+                (0..final_incident.len())
+                    .max_by(|&a, &b| final_incident[a].0.total_cmp(&final_incident[b].0))
+                    .unwrap_or(0)
+            }
+        },
+    };
+    let scene_reference = scene.reference.as_ref().filter(|r| r.surface == surface);
+    // Without a closed form, the reference is an independent run (another seed, same budget):
+    // the doubling rows share their batches, so none of them can serve as an unbiased reference.
+    let closed_form = reference.or(scene_reference.map(|r| r.incident_w));
+    let independent = if closed_form.is_none() || result.film.is_some() {
+        let seed = scene.simulation.seed;
+        scene.simulation.seed = seed.wrapping_add(1);
+        let r = simulate_observed(scene, &run_opts, &chosen, &AtomicBool::new(false), &mut |_| {});
+        scene.simulation.seed = seed;
+        let r = r?;
+        Some(snapshot(&r.tallies, r.film.as_ref(), r.emitted_w, r.wall_seconds, &run_opts))
+    } else {
+        None
+    };
+    let (reference_w, reference_source) = match (reference, scene_reference, &independent) {
+        (Some(v), _, _) => (v, "--reference".to_string()),
+        (None, Some(r), _) => (r.incident_w, format!("closed form from the scene: {}", r.note)),
+        (None, None, Some(ind)) => {
+            (ind.incident[surface].0, format!("an independent run, seed + 1, {} photons", ind.photons))
+        }
+        (None, None, None) => unreachable!("an independent run is made when there is no closed form"),
+    };
+    let ref_image = independent.as_ref().and_then(|s| s.image_y.clone().zip(s.image_y_var.clone()));
+    let rows = snaps
+        .iter()
+        .map(|s| {
+            let (est, se) = s.incident[surface];
+            let rel = if est != 0.0 { se / est.abs() } else { f64::INFINITY };
+            let image_rrmse = match (&s.image_y, &ref_image) {
+                (Some(y), Some((r, r_var))) => Some(rrmse(y, r, r_var)),
+                _ => None,
+            };
+            Row {
+                photons: s.photons,
+                seconds: s.seconds,
+                estimate_w: est,
+                rel_stderr: rel,
+                observed_rel_error: ((est - reference_w) / reference_w).abs(),
+                fom: 1.0 / (rel * rel * s.seconds),
+                image_rrmse,
+            }
+        })
+        .collect();
+    Ok(Convergence { surface: scene.surfaces[surface].name.clone(), reference_w, reference_source, rows })
+}
+
+/// Relative RMSE of `y` against an independent reference `r`: sqrt(mean((y − r)²) − mean(Var r))
+/// / mean(r). E[(y − r)²] = Var y + Var r + bias², so subtracting the reference's own variance
+/// (its Y_var) leaves the error of `y` alone, free of the reference's noise floor.
+fn rrmse(y: &[f32], r: &[f32], r_var: &[f32]) -> f64 {
+    let n = r.len() as f64;
+    let mean = r.iter().map(|&v| v as f64).sum::<f64>() / n;
+    let mse = y.iter().zip(r).map(|(&a, &b)| (a as f64 - b as f64).powi(2)).sum::<f64>() / n;
+    let ref_var = r_var.iter().map(|&v| v as f64).sum::<f64>() / n;
+    (mse - ref_var).max(0.0).sqrt() / mean
+}
+
+/// Least-squares slope of log(y) against log(x) over points with positive values.
+pub fn log_log_slope(points: &[(f64, f64)]) -> Option<f64> {
+    let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.0 > 0.0 && p.1 > 0.0).map(|p| (p.0.ln(), p.1.ln())).collect();
+    if pts.len() < 2 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (pts.iter().map(|p| p.0).sum::<f64>() / n, pts.iter().map(|p| p.1).sum::<f64>() / n);
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    (sxx > 0.0).then(|| sxy / sxx)
+}
+
+impl Convergence {
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "surface {}: incident power; reference {:.6e} W ({})\n{:>11}  {:>9}  {:>14}  {:>10}  {:>12}  {:>10}  {:>12}\n",
+            self.surface,
+            self.reference_w,
+            self.reference_source,
+            "photons",
+            "seconds",
+            "estimate W",
+            "rel.stderr",
+            "observed err",
+            "FOM",
+            "image rRMSE"
+        );
+        for r in &self.rows {
+            let _ = writeln!(
+                s,
+                "{:>11}  {:>9.3}  {:>14.6e}  {:>10.3e}  {:>12}  {:>10.3e}  {:>12}",
+                r.photons,
+                r.seconds,
+                r.estimate_w,
+                r.rel_stderr,
+                format!("{:.3e}", r.observed_rel_error),
+                r.fom,
+                r.image_rrmse.map_or("-".into(), |e| format!("{e:.3e}"))
+            );
+        }
+        let slope = |f: &dyn Fn(&Row) -> Option<f64>| {
+            log_log_slope(&self.rows.iter().filter_map(|r| f(r).map(|e| (r.seconds, e))).collect::<Vec<_>>())
+        };
+        let show = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{v:.3}"));
+        let _ = writeln!(
+            s,
+            "log-log slopes against seconds (N^-1/2 gives -0.5): rel.stderr {}, observed error {}, image rRMSE {}",
+            show(slope(&|r| Some(r.rel_stderr))),
+            show(slope(&|r| Some(r.observed_rel_error))),
+            show(slope(&|r| r.image_rrmse))
+        );
+        s
+    }
+
+    pub fn csv(&self) -> String {
+        let mut s = String::from("photons,seconds,estimate_w,rel_stderr,observed_rel_error,fom,image_rrmse\n");
+        for r in &self.rows {
+            let opt = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
+            let _ = writeln!(
+                s,
+                "{},{},{},{},{},{},{}",
+                r.photons,
+                r.seconds,
+                r.estimate_w,
+                r.rel_stderr,
+                r.observed_rel_error,
+                r.fom,
+                opt(r.image_rrmse)
+            );
+        }
+        s
+    }
+
+    /// convergence.png: log-log error against seconds, with the N^(−1/2) line and fitted slopes.
+    pub fn plot(&self, path: &Path, title: &str) -> Result<(), Error> {
+        let err = |e: &dyn std::fmt::Display| Error::Other(format!("cannot draw {}: {e}", path.display()));
+        crate::output::register_plot_font();
+        let root = BitMapBackend::new(path, (900, 640)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        type Series = (String, Vec<(f64, f64)>, RGBColor);
+        let mut series: Vec<Series> = Vec::new();
+        let pick = |f: &dyn Fn(&Row) -> Option<f64>| -> Vec<(f64, f64)> {
+            self.rows
+                .iter()
+                .filter_map(|r| f(r).filter(|v| *v > 0.0 && v.is_finite()).map(|v| (r.seconds, v)))
+                .collect()
+        };
+        let slope_label = |name: &str, pts: &[(f64, f64)]| match log_log_slope(pts) {
+            Some(s) => format!("{name} (slope {s:.2})"),
+            None => name.to_string(),
+        };
+        let stderr = pick(&|r| Some(r.rel_stderr));
+        series.push((
+            slope_label(&format!("{}: relative standard error", self.surface), &stderr),
+            stderr.clone(),
+            BLUE,
+        ));
+        let observed = pick(&|r| Some(r.observed_rel_error));
+        series.push((slope_label(&format!("{}: observed error vs reference", self.surface), &observed), observed, RED));
+        let image = pick(&|r| r.image_rrmse);
+        if !image.is_empty() {
+            series.push((slope_label("image: relative RMSE vs reference run", &image), image, RGBColor(0, 140, 0)));
+        }
+        let all: Vec<(f64, f64)> = series.iter().flat_map(|s| s.1.iter().copied()).collect();
+        let (x0, x1) = all.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.0), b.max(p.0)));
+        let (y0, y1) = all.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0 / 1.5..x1 * 1.5).log_scale(), (y0 / 3.0..y1 * 3.0).log_scale())
+            .map_err(|e| err(&e))?;
+        chart.configure_mesh().x_desc("wall-clock seconds").y_desc("relative error").draw().map_err(|e| err(&e))?;
+        // N^(−1/2) ∝ t^(−1/2) through the first standard-error point.
+        if let Some(&(t0, e0)) = stderr.first() {
+            let line = [(x0 / 1.5, e0 * (t0 / (x0 / 1.5)).sqrt()), (x1 * 1.5, e0 * (t0 / (x1 * 1.5)).sqrt())];
+            chart
+                .draw_series(LineSeries::new(line, BLACK.mix(0.5)))
+                .map_err(|e| err(&e))?
+                .label("N^-1/2 (slope -0.5)")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.5)));
+        }
+        for (label, pts, colour) in series {
+            chart.draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2))).map_err(|e| err(&e))?;
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 4, colour.filled())))
+                .map_err(|e| err(&e))?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn slope_of_a_power_law_is_its_exponent() {
+        let pts: Vec<(f64, f64)> = (1..8).map(|k| (k as f64, 3.0 * (k as f64).powf(-0.5))).collect();
+        assert!((log_log_slope(&pts).unwrap() + 0.5).abs() < 1e-12);
+    }
+}
