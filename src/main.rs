@@ -199,6 +199,7 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
         output::write_exr(&out_dir, &image)?;
         output::write_png(&out_dir, &image)?;
         info.image_mean_y = Some(film.mean_y(result.emitted_w));
+        info.image_pixel_rel_error = Some(output::pixel_rel_error(&image));
         if film.film_batches() < 2 {
             eprintln!(
                 "warning: fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0"

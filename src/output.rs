@@ -64,6 +64,9 @@ pub struct RunInfo {
     /// Mean Y over the image and its standard error, when an image was made.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_mean_y: Option<(f64, f64)>,
+    /// Relative RMS pixel noise sqrt(mean(Y_var))/mean(Y): the image's typical relative error.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub image_pixel_rel_error: Option<f64>,
 }
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
@@ -119,6 +122,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         max_bounces: scene.simulation.max_bounces,
         fom,
         image_mean_y: None,
+        image_pixel_rel_error: None,
         counters: r.tallies.counters,
         rays_per_second: if r.wall_seconds > 0.0 {
             (r.tallies.counters.rays + r.tallies.counters.shadow_rays) as f64 / r.wall_seconds
@@ -194,8 +198,10 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
         l.truncated_w,
         l.relative_residual()
     ));
-    if let Some((y, se)) = info.image_mean_y {
-        s.push_str(&format!("image: mean Y {y:.6e} ± {se:.2e} W m^-2 sr^-1 nm^-1\n"));
+    if let (Some((y, se)), Some(px)) = (info.image_mean_y, info.image_pixel_rel_error) {
+        s.push_str(&format!(
+            "image: mean Y {y:.6e} ± {se:.2e} W m^-2 sr^-1 nm^-1; pixel noise {px:.3e} (relative RMS)\n"
+        ));
     }
     s.push_str(&format!(
         "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport), stopped by {:?}\n",
@@ -260,6 +266,14 @@ pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Erro
         w.write_image_data(&data).map_err(|e| Error::Other(format!("cannot encode image.png: {e}")))?;
     }
     write_atomic(dir, "image.png", &bytes)
+}
+
+/// sqrt(mean(Y_var))/mean(Y) of an image.
+pub fn pixel_rel_error(image: &crate::film::Image) -> f64 {
+    let n = image.y_var.len() as f64;
+    let mean_y = image.xyz.column(1).iter().map(|&y| y as f64).sum::<f64>() / n;
+    let mean_var = image.y_var.iter().map(|&v| v as f64).sum::<f64>() / n;
+    mean_var.sqrt() / mean_y
 }
 
 /// The plots' font, embedded (DejaVu Sans, see assets/fonts/) so no system font is needed.

@@ -76,26 +76,15 @@ impl Kernel<'_> {
     pub fn trace_batch(&self, batch: u64, count: u64) -> (Tallies, Option<FilmBatch>) {
         let start = std::time::Instant::now();
         let mut film = self.camera.map(|_| FilmBatch::default());
-        let expected = self.options.estimator == Estimator::Expected;
-        let spectral = self.scene.effects.spectral;
-        let f = film.as_mut();
-        macro_rules! go {
-            ($s:literal, $c:literal, $e:literal, $h:literal) => {
-                self.trace::<$s, $c, $e, $h>(batch, count, f)
-            };
-        }
-        let mut tallies = match (spectral, self.camera.is_some(), expected, self.uses_hero()) {
-            (false, false, false, _) => go!(false, false, false, false),
-            (false, false, true, _) => go!(false, false, true, false),
-            (false, true, false, _) => go!(false, true, false, false),
-            (false, true, true, _) => go!(false, true, true, false),
-            (true, false, false, _) => go!(true, false, false, false),
-            (true, false, true, _) => go!(true, false, true, false),
-            (true, true, false, false) => go!(true, true, false, false),
-            (true, true, true, false) => go!(true, true, true, false),
-            (true, true, false, true) => go!(true, true, false, true),
-            (true, true, true, true) => go!(true, true, true, true),
+        let fx = &self.scene.effects;
+        let flags = Flags {
+            spectral: fx.spectral,
+            camera: self.camera.is_some(),
+            expected: self.options.estimator == Estimator::Expected,
+            hero: self.uses_hero(),
+            dielectric: fx.refraction,
         };
+        let mut tallies = self.dispatch_spectral(flags, batch, count, film.as_mut());
         if let Some(f) = &film {
             tallies.counters.shadow_rays = f.shadow_rays;
             tallies.counters.splats = f.splats.len() as u64;
@@ -104,9 +93,82 @@ impl Kernel<'_> {
         (tallies, film)
     }
 
+    // One runtime flag at a time becomes a const parameter, so `trace` is compiled once per effect
+    // set and chosen once per batch: no per-photon branch on what the scene lacks.
+    fn dispatch_spectral(&self, f: Flags, batch: u64, count: u64, film: Option<&mut FilmBatch>) -> Tallies {
+        if f.spectral {
+            self.dispatch_camera::<true>(f, batch, count, film)
+        } else {
+            self.dispatch_camera::<false>(f, batch, count, film)
+        }
+    }
+
+    fn dispatch_camera<const S: bool>(
+        &self,
+        f: Flags,
+        batch: u64,
+        count: u64,
+        film: Option<&mut FilmBatch>,
+    ) -> Tallies {
+        if f.camera {
+            self.dispatch_estimator::<S, true>(f, batch, count, film)
+        } else {
+            self.dispatch_estimator::<S, false>(f, batch, count, film)
+        }
+    }
+
+    fn dispatch_estimator<const S: bool, const C: bool>(
+        &self,
+        f: Flags,
+        batch: u64,
+        count: u64,
+        film: Option<&mut FilmBatch>,
+    ) -> Tallies {
+        if f.expected {
+            self.dispatch_hero::<S, C, true>(f, batch, count, film)
+        } else {
+            self.dispatch_hero::<S, C, false>(f, batch, count, film)
+        }
+    }
+
+    fn dispatch_hero<const S: bool, const C: bool, const E: bool>(
+        &self,
+        f: Flags,
+        batch: u64,
+        count: u64,
+        film: Option<&mut FilmBatch>,
+    ) -> Tallies {
+        // Hero wavelengths need spectral transport and a film.
+        if S && C && f.hero {
+            self.dispatch_dielectric::<S, C, E, true>(f, batch, count, film)
+        } else {
+            self.dispatch_dielectric::<S, C, E, false>(f, batch, count, film)
+        }
+    }
+
+    fn dispatch_dielectric<const S: bool, const C: bool, const E: bool, const H: bool>(
+        &self,
+        f: Flags,
+        batch: u64,
+        count: u64,
+        film: Option<&mut FilmBatch>,
+    ) -> Tallies {
+        if f.dielectric {
+            self.trace::<S, C, E, H, true>(batch, count, film)
+        } else {
+            self.trace::<S, C, E, H, false>(batch, count, film)
+        }
+    }
+
     /// Traces the photons of one batch with the batch's own random stream. Buffers are allocated
     /// once per batch; nothing inside the photon loop allocates.
-    fn trace<const SPECTRAL: bool, const CAMERA: bool, const EXPECTED: bool, const HERO: bool>(
+    fn trace<
+        const SPECTRAL: bool,
+        const CAMERA: bool,
+        const EXPECTED: bool,
+        const HERO: bool,
+        const DIELECTRIC: bool,
+    >(
         &self,
         batch: u64,
         count: u64,
@@ -155,13 +217,15 @@ impl Kernel<'_> {
                 let surface = geo.surface[prim];
                 let material = materials[surface as usize];
                 let n = geo.normals[prim];
-                let is_dielectric = matches!(material, Material::Dielectric { .. });
+                // Without dielectrics in the scene, no refraction, Fresnel or media code is compiled in.
+                let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
 
                 // Beer–Lambert: crossing an absorbing medium over distance t, a photon keeps the
                 // fraction exp(−α t) (analog: survives with that probability); the rest is
                 // absorbed by the medium, tallied to its surface. The medium is the dielectric the
                 // photon last refracted into, or, for one born inside, the one it reaches from inside.
-                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
+                let segment_medium =
+                    if DIELECTRIC { medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface)) } else { None };
                 if let Some(m) = segment_medium {
                     if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = materials[m as usize] {
                         let t = hit.t as f64;
@@ -241,6 +305,16 @@ impl Kernel<'_> {
         out.photons = count;
         out
     }
+}
+
+/// The effect set and estimator a batch is compiled for.
+#[derive(Clone, Copy)]
+struct Flags {
+    spectral: bool,
+    camera: bool,
+    expected: bool,
+    hero: bool,
+    dielectric: bool,
 }
 
 /// A Latin hypercube over one batch: in every emission dimension the n photons take one sample
