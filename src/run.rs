@@ -1,10 +1,8 @@
 //! The driver: fixed-size photon batches traced in parallel, merged in batch-index order, with
 //! stopping on photon count, relative error, time budget or Ctrl-C at batch boundaries.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
-
-use rayon::prelude::*;
 
 use crate::emitter::Emitter;
 use crate::error::Error;
@@ -165,43 +163,80 @@ pub fn simulate_observed(
 
     let progress = make_progress(opts.progress, (cap != u64::MAX).then_some(cap));
     let mut tallies = Tallies::new(scene.surfaces.len());
-    let round = (threads as u64 * 2).max(1);
-    let mut next = 0u64;
     let mut stop = StopReason::Photons;
-    'rounds: while next < total_batches {
-        let end = (next + round).min(total_batches);
-        let batches: Vec<_> =
-            pool.install(|| (next..end).into_par_iter().map(|b| kernel.trace_batch(b, photons_in(b))).collect());
-        for (b, (t, f)) in (next..end).zip(&batches) {
-            tallies.merge(t);
-            if let (Some(film), Some(f)) = (film.as_mut(), f) {
-                film.merge(f, t.photons);
-            }
-            observer(Progress { tallies: &tallies, film: film.as_ref(), emitted_w: emitter.total_power_w, threads });
-            if let Some(target) = opts.rel_error {
-                if b + 1 >= MIN_BATCHES_FOR_REL_ERROR
-                    && tallies
-                        .worst_rel_error(rel_error_surfaces, opts.transport.error_model())
-                        .is_some_and(|e| e <= target)
-                {
-                    stop = StopReason::RelError;
-                    break 'rounds;
+    // Workers take batch indices in order and send results back; this thread merges them in
+    // index order as they arrive, so tracing never waits for merging and the merge order (hence
+    // every number) is the same for any thread count. Workers stay at most `window` batches
+    // ahead of the merge, which bounds memory; a stop (target met, time, Ctrl-C) tells them to
+    // quit after the batch in hand, and batches past the stopping point are discarded.
+    let window = 2 * threads as u64;
+    let next = AtomicU64::new(0);
+    let merged = AtomicU64::new(0);
+    let quit = AtomicBool::new(false);
+    let (tx, rx) = std::sync::mpsc::channel();
+    pool.in_place_scope(|scope| {
+        for _ in 0..threads {
+            let tx = tx.clone();
+            let (next, merged, quit, kernel) = (&next, &merged, &quit, &kernel);
+            scope.spawn(move |_| loop {
+                let b = next.fetch_add(1, Ordering::Relaxed);
+                if b >= total_batches || quit.load(Ordering::Relaxed) {
+                    break;
+                }
+                while b >= merged.load(Ordering::Acquire) + window && !quit.load(Ordering::Relaxed) {
+                    std::thread::sleep(std::time::Duration::from_micros(100));
+                }
+                if quit.load(Ordering::Relaxed) || tx.send((b, kernel.trace_batch(b, photons_in(b)))).is_err() {
+                    break;
+                }
+            });
+        }
+        drop(tx);
+        let mut pending = std::collections::BTreeMap::new();
+        let mut want = 0u64;
+        'merge: while want < total_batches {
+            let Ok((b, result)) = rx.recv() else { break };
+            pending.insert(b, result);
+            while let Some((t, f)) = pending.remove(&want) {
+                tallies.merge(&t);
+                if let (Some(film), Some(f)) = (film.as_mut(), &f) {
+                    film.merge(f, t.photons);
+                }
+                want += 1;
+                merged.store(want, Ordering::Release);
+                observer(Progress {
+                    tallies: &tallies,
+                    film: film.as_ref(),
+                    emitted_w: emitter.total_power_w,
+                    threads,
+                });
+                if let Some(p) = &progress {
+                    p.set_position(tallies.photons);
+                }
+                if let Some(target) = opts.rel_error {
+                    if want >= MIN_BATCHES_FOR_REL_ERROR
+                        && tallies
+                            .worst_rel_error(rel_error_surfaces, opts.transport.error_model())
+                            .is_some_and(|e| e <= target)
+                    {
+                        stop = StopReason::RelError;
+                        break 'merge;
+                    }
+                }
+                if interrupt.load(Ordering::Relaxed) {
+                    stop = StopReason::Interrupted;
+                    break 'merge;
+                }
+                if opts.time_s.is_some_and(|t| start.elapsed().as_secs_f64() >= t) {
+                    stop = StopReason::Time;
+                    break 'merge;
                 }
             }
         }
-        next = end;
-        if let Some(p) = &progress {
-            p.set_position(tallies.photons);
-        }
-        if interrupt.load(Ordering::Relaxed) {
-            stop = StopReason::Interrupted;
-            break;
-        }
-        if opts.time_s.is_some_and(|t| start.elapsed().as_secs_f64() >= t) {
-            stop = StopReason::Time;
-            break;
-        }
-    }
+        quit.store(true, Ordering::Relaxed);
+        // Drain, so no worker blocks on a send; its batches are past the stop and are dropped.
+        drop(rx);
+    });
     if let Some(p) = progress {
         p.finish_and_clear();
     }
