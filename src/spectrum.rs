@@ -10,7 +10,7 @@ const BOLTZMANN_K: f64 = 1.380_649e-23;
 pub enum Spectrum {
     Constant(f64),
     /// (wavelength_nm, value), wavelengths strictly increasing; linear between points, zero outside.
-    Table(Vec<(f64, f64)>),
+    Table(Table),
     /// Planck spectral radiance at temperature `kelvin`, in W m^-2 sr^-1 nm^-1.
     Blackbody {
         kelvin: f64,
@@ -20,6 +20,40 @@ pub enum Spectrum {
         a: f64,
         b_um2: f64,
     },
+}
+
+/// A tabulated spectrum. Tables on a uniform grid (most measured data) are looked up in O(1);
+/// others by binary search.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    pub points: Vec<(f64, f64)>,
+    /// 1/step when the wavelengths are equally spaced.
+    inv_step: Option<f64>,
+}
+
+impl Table {
+    pub fn new(points: Vec<(f64, f64)>) -> Self {
+        let uniform = points.len() >= 2 && {
+            let step = points[1].0 - points[0].0;
+            points.windows(2).all(|w| ((w[1].0 - w[0].0) - step).abs() <= 1e-9 * step)
+        };
+        let inv_step = uniform.then(|| (points.len() - 1) as f64 / (points[points.len() - 1].0 - points[0].0));
+        Table { points, inv_step }
+    }
+
+    #[inline]
+    fn eval(&self, x: f64) -> f64 {
+        let p = &self.points;
+        let Some(inv_step) = self.inv_step else { return table_eval(p, x) };
+        let last = p.len() - 1;
+        let f = (x - p[0].0) * inv_step;
+        if !(f >= 0.0 && f <= last as f64) {
+            return 0.0;
+        }
+        let i = (f as usize).min(last - 1);
+        let t = f - i as f64;
+        p[i].1 + (p[i + 1].1 - p[i].1) * t
+    }
 }
 
 /// Planck's law: B(λ, T) = 2hc²/λ⁵ / (exp(hc/(λkT)) − 1), per metre of wavelength; returned per nm.
@@ -34,7 +68,7 @@ impl Spectrum {
     pub fn eval(&self, lambda_nm: f64) -> f64 {
         match self {
             Spectrum::Constant(c) => *c,
-            Spectrum::Table(points) => table_eval(points, lambda_nm),
+            Spectrum::Table(t) => t.eval(lambda_nm),
             Spectrum::Blackbody { kelvin } => planck_w_m2_sr_nm(lambda_nm, *kelvin),
             Spectrum::Cauchy { a, b_um2 } => {
                 let um = lambda_nm * 1e-3;
@@ -47,7 +81,7 @@ impl Spectrum {
     pub fn constant_over(&self, range: (f64, f64)) -> Option<f64> {
         match self {
             Spectrum::Constant(c) => Some(*c),
-            Spectrum::Table(points) => {
+            Spectrum::Table(Table { points, .. }) => {
                 let first = points.first()?;
                 let last = points.last()?;
                 let covers = first.0 <= range.0 && last.0 >= range.1;
@@ -76,7 +110,7 @@ impl Spectrum {
     /// get a 1 nm grid.
     pub fn breakpoints(&self, range: (f64, f64)) -> Vec<f64> {
         let (mut a, mut b) = range;
-        if let Spectrum::Table(points) = self {
+        if let Spectrum::Table(Table { points, .. }) = self {
             a = a.max(points[0].0);
             b = b.min(points[points.len() - 1].0);
             if a >= b {
@@ -86,7 +120,7 @@ impl Spectrum {
         let mut xs = vec![a];
         match self {
             Spectrum::Constant(_) => {}
-            Spectrum::Table(points) => xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b)),
+            Spectrum::Table(Table { points, .. }) => xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b)),
             Spectrum::Blackbody { .. } | Spectrum::Cauchy { .. } => {
                 let mut x = a.floor() + 1.0;
                 while x < b {
@@ -102,7 +136,7 @@ impl Spectrum {
     /// True when a table leaves part of `range` uncovered, where it is zero.
     pub fn has_gaps(&self, range: (f64, f64)) -> bool {
         match self {
-            Spectrum::Table(points) => points[0].0 > range.0 || points[points.len() - 1].0 < range.1,
+            Spectrum::Table(Table { points, .. }) => points[0].0 > range.0 || points[points.len() - 1].0 < range.1,
             _ => false,
         }
     }
@@ -180,7 +214,7 @@ mod tests {
 
     #[test]
     fn table_interpolates_and_is_zero_outside() {
-        let s = Spectrum::Table(vec![(400.0, 1.0), (500.0, 3.0)]);
+        let s = Spectrum::Table(Table::new(vec![(400.0, 1.0), (500.0, 3.0)]));
         assert_eq!(s.eval(450.0), 2.0);
         assert_eq!(s.eval(400.0), 1.0);
         assert_eq!(s.eval(500.0), 3.0);
@@ -195,9 +229,20 @@ mod tests {
     }
 
     #[test]
+    fn uniform_and_irregular_tables_interpolate_alike() {
+        let pts = vec![(400.0, 0.2), (404.0, 0.5), (408.0, 0.1), (412.0, 0.9)];
+        let uniform = Table::new(pts.clone());
+        assert!(uniform.inv_step.is_some());
+        for k in 0..=130 {
+            let x = 398.0 + 0.1 * k as f64;
+            assert!((uniform.eval(x) - table_eval(&pts, x)).abs() < 1e-12, "at {x}");
+        }
+    }
+
+    #[test]
     fn sampler_matches_linear_pdf_cdf() {
         // f(λ) = λ − 400 on [400, 500]: CDF(λ) = ((λ−400)/100)², so λ(u) = 400 + 100·√u exactly.
-        let s = Spectrum::Table(vec![(400.0, 0.0), (500.0, 100.0)]);
+        let s = Spectrum::Table(Table::new(vec![(400.0, 0.0), (500.0, 100.0)]));
         let sampler = SpectralSampler::new(&s, (400.0, 500.0)).unwrap();
         for k in 0..100 {
             let u = k as f64 / 100.0;

@@ -716,7 +716,7 @@ impl<'s> Loader<'s> {
                     Some(item) => Node { src: n.src, path: &index_path(n.path, i), value: item }.err(m),
                     None => n.err(m),
                 })?;
-                Ok(Spectrum::Table(points))
+                Ok(Spectrum::Table(crate::spectrum::Table::new(points)))
             }),
             "file" => t.require("file", |n| {
                 let rel = n.str()?;
@@ -804,7 +804,7 @@ pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
     }
     check_table(&points)
         .map_err(|(row, m)| InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m))?;
-    Ok(Spectrum::Table(points))
+    Ok(Spectrum::Table(crate::spectrum::Table::new(points)))
 }
 
 fn simplify(s: &mut Spectrum, range: (f64, f64)) {
