@@ -49,15 +49,8 @@ enum Command {
         /// Skip the camera image.
         #[arg(long = "no-image")]
         no_image: bool,
-        /// Absorption estimator: expected-value weighting (default) or analog survival.
-        #[arg(long, value_enum, default_value_t = Estimator::Expected)]
-        estimator: Estimator,
-        /// Stratify each batch's emission samples (Latin hypercube).
-        #[arg(long)]
-        stratified: bool,
-        /// One wavelength per photon in the image instead of four hero wavelengths.
-        #[arg(long = "no-hero")]
-        no_hero: bool,
+        #[command(flatten)]
+        transport: TransportArgs,
         /// No progress bar and no table.
         #[arg(long)]
         quiet: bool,
@@ -83,12 +76,9 @@ enum Command {
         seed: Option<u64>,
         #[arg(long)]
         threads: Option<usize>,
-        #[arg(long, value_enum, default_value_t = Estimator::Expected)]
-        estimator: Estimator,
-        #[arg(long)]
-        stratified: bool,
-        #[arg(long = "no-hero")]
-        no_hero: bool,
+        #[command(flatten)]
+        transport: TransportArgs,
+        /// Skip the camera image.
         #[arg(long = "no-image")]
         no_image: bool,
     },
@@ -100,6 +90,26 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
     },
+}
+
+/// The transport options `run` and `converge` share.
+#[derive(clap::Args)]
+struct TransportArgs {
+    /// Absorption estimator: expected-value weighting or analog survival.
+    #[arg(long, value_enum, default_value_t = TransportOptions::default().estimator)]
+    estimator: Estimator,
+    /// Stratify each batch's emission samples (Latin hypercube).
+    #[arg(long)]
+    stratified: bool,
+    /// One wavelength per photon in the image instead of four hero wavelengths.
+    #[arg(long = "no-hero")]
+    no_hero: bool,
+}
+
+impl TransportArgs {
+    fn options(&self) -> TransportOptions {
+        TransportOptions { estimator: self.estimator, stratified: self.stratified, hero: !self.no_hero }
+    }
 }
 
 fn main() -> ExitCode {
@@ -124,9 +134,7 @@ fn main() -> ExitCode {
             max_bounces,
             no_image,
             quiet,
-            estimator,
-            stratified,
-            no_hero,
+            transport,
         } => {
             let opts = RunOptions {
                 photons,
@@ -138,7 +146,7 @@ fn main() -> ExitCode {
                 time_s: time,
                 progress: !quiet,
                 no_image,
-                transport: TransportOptions { estimator, stratified, hero: !no_hero },
+                transport: transport.options(),
             };
             run(&scene, out, &opts, quiet)
         }
@@ -152,9 +160,7 @@ fn main() -> ExitCode {
             out,
             seed,
             threads,
-            estimator,
-            stratified,
-            no_hero,
+            transport,
             no_image,
         } => {
             let opts = RunOptions {
@@ -162,7 +168,7 @@ fn main() -> ExitCode {
                 threads,
                 no_image,
                 progress: false,
-                transport: TransportOptions { estimator, stratified, hero: !no_hero },
+                transport: transport.options(),
                 ..Default::default()
             };
             converge(&scene, out, &opts, tally.as_deref(), reference, budget)

@@ -5,7 +5,6 @@
 mod common;
 use common::{assert_z, run, run_with, surface, ANALOG};
 
-use std::f64::consts::PI;
 
 #[test]
 fn closed_absorbing_box_absorbs_exactly_the_emitted_power() {
@@ -80,19 +79,6 @@ fn furnace_incident_is_power_over_one_minus_albedo() {
     }
 }
 
-/// View factor between identical, parallel, directly opposed rectangles a×b at distance c
-/// (Howell, A Catalog of Radiation Heat Transfer Configuration Factors, C-11).
-fn view_factor_parallel_rectangles(a: f64, b: f64, c: f64) -> f64 {
-    let (x, y) = (a / c, b / c);
-    let (x1, y1) = (1.0 + x * x, 1.0 + y * y);
-    2.0 / (PI * x * y)
-        * ((x1 * y1 / (x1 + y1 - 1.0)).sqrt().ln()
-            + x * y1.sqrt() * (x / y1.sqrt()).atan()
-            + y * x1.sqrt() * (y / x1.sqrt()).atan()
-            - x * x.atan()
-            - y * y.atan())
-}
-
 #[test]
 fn parallel_squares_receive_power_times_view_factor() {
     for (a, c) in [(1.0, 1.0), (2.0, 0.5), (0.3, 1.2)] {
@@ -110,7 +96,7 @@ fn parallel_squares_receive_power_times_view_factor() {
         );
         let f = run(&toml, 200_000, 11);
         let r = surface(&f, "receiver");
-        let expected = 5.0 * view_factor_parallel_rectangles(a, a, c);
+        let expected = 5.0 * photon::validate::vf_parallel_rectangles(a, a, c);
         assert_z(&format!("view factor a={a} c={c}"), r.incident_w, expected, r.incident_w_stderr, 4.0);
     }
 }
