@@ -152,17 +152,7 @@ fn main() -> ExitCode {
         }
         Command::Info { scene } => info(&scene),
         Command::Validate { quick, threads } => validate(quick, threads),
-        Command::Converge {
-            scene,
-            tally,
-            budget,
-            reference,
-            out,
-            seed,
-            threads,
-            transport,
-            no_image,
-        } => {
+        Command::Converge { scene, tally, budget, reference, out, seed, threads, transport, no_image } => {
             let opts = RunOptions {
                 seed,
                 threads,

@@ -5,7 +5,6 @@
 mod common;
 use common::{assert_z, run, run_with, surface, ANALOG};
 
-
 #[test]
 fn closed_absorbing_box_absorbs_exactly_the_emitted_power() {
     let f = run(
