@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# photon vs Mitsuba 3's particle tracer (`ptracer`) on the measured Cornell box.
+#
+#   bash bench/mitsuba/run.sh [compare.py options, e.g. --spp 8 --ref-photons 40000000]
+#
+# Makes bench/mitsuba/.venv (Mitsuba from PyPI, CPU variants), builds photon in release mode, then
+# renders the same scene with both and prints the table it also writes to bench/mitsuba/results.md.
+# Images and run outputs go to bench/mitsuba/out/. Not part of `cargo test` or CI.
+#
+# Mitsuba's llvm_ad_* variants need a libLLVM that can compile Dr.Jit's kernels (LLVM 14 and 15
+# abort with "Cannot select: fmaximum"; 19 works): on Debian 12, `apt-get install libllvm19`.
+# Without one the benchmark runs the scalar_spectral variant only.
+set -euo pipefail
+
+HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+ROOT="$(cd "$HERE/../.." && pwd)"
+VENV="$HERE/.venv"
+MITSUBA_VERSION=3.9.1   # drjit 1.5.0 comes with it
+NUMPY_VERSION=2.4.6
+
+if [[ ! -x "$VENV/bin/python" ]]; then
+    python3 -m venv "$VENV"
+fi
+"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check \
+    "mitsuba==$MITSUBA_VERSION" "numpy==$NUMPY_VERSION"
+
+(cd "$ROOT" && cargo build --release --quiet)
+# Which photon that is (the table names it).
+if rev="$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null)"; then
+    git -C "$ROOT" diff --quiet HEAD -- src Cargo.toml Cargo.lock || rev="$rev+uncommitted"
+    export PHOTON_REV="$rev"
+fi
+
+# Point Dr.Jit at the newest libLLVM >= 16 on the machine, unless the caller chose one.
+if [[ -z "${DRJIT_LIBLLVM_PATH:-}" ]]; then
+    best=""; best_major=0
+    for lib in /usr/lib/llvm-*/lib/libLLVM*.so* /usr/lib/*-linux-gnu/libLLVM*.so* /usr/lib64/libLLVM*.so*; do
+        [[ -e "$lib" ]] || continue
+        major="$(basename "$lib" | sed -nE 's/^libLLVM(-|\.so\.)([0-9]+).*/\2/p')"
+        [[ -n "$major" ]] || continue
+        if (( major >= 16 && major > best_major )); then best="$lib"; best_major="$major"; fi
+    done
+    if [[ -n "$best" ]]; then
+        export DRJIT_LIBLLVM_PATH="$best"
+        echo "Dr.Jit LLVM backend: $best"
+    else
+        echo "no libLLVM >= 16 found: llvm_ad_spectral will be skipped (apt-get install libllvm19 to add it)"
+    fi
+fi
+
+cd "$ROOT"
+"$VENV/bin/python" "$HERE/compare.py" "$@"
+echo "run.sh: ${SECONDS} s in all (venv, build and benchmark)"
