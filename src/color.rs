@@ -84,6 +84,22 @@ pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
     )
 }
 
+/// Brings a linear sRGB colour with a negative component back into the gamut by mixing it with
+/// the grey of the same luminance Y, just enough: c' = Y + t(c − Y), t = min over negative
+/// components of Y/(Y − cᵢ). Y is kept exactly (sRGB's luminance row is CIE Y for D65 white), only
+/// the chromaticity of out-of-gamut or noise-dominated pixels moves toward white.
+pub fn desaturate_into_gamut(c: Vec3, y: f32) -> Vec3 {
+    if c.min_element() >= 0.0 {
+        return c;
+    }
+    if !(y > 0.0) {
+        return Vec3::ZERO;
+    }
+    let grey = Vec3::splat(y);
+    let t = [c.x, c.y, c.z].iter().filter(|&&ci| ci < 0.0).map(|&ci| y / (y - ci)).fold(1.0f32, f32::min);
+    (grey + t * (c - grey)).max(Vec3::ZERO)
+}
+
 /// The sRGB transfer curve (linear → encoded), for the PNG preview.
 pub fn srgb_encode(v: f32) -> f32 {
     if v <= 0.003_130_8 {
@@ -104,6 +120,20 @@ mod tests {
         let sum: f64 = (360..=830).map(|l| c.at(l as f64)[1]).sum();
         assert!((sum - 106.856917).abs() < 1e-5, "{sum}");
         assert_eq!(c.at(555.0)[1], 1.0);
+    }
+
+    #[test]
+    fn desaturation_keeps_luminance_and_clears_negatives() {
+        // A saturated spectral blue-green, outside sRGB.
+        let xyz = Vec3::new(0.05, 0.3, 0.4);
+        let c = xyz_to_linear_srgb(xyz);
+        assert!(c.min_element() < 0.0);
+        let d = desaturate_into_gamut(c, xyz.y);
+        assert!(d.min_element() >= 0.0 && d.min_element() < 1e-6);
+        let lum = 0.2126 * d.x + 0.7152 * d.y + 0.0722 * d.z;
+        assert!((lum - xyz.y).abs() < 1e-4, "{lum} vs {}", xyz.y);
+        let inside = Vec3::new(0.2, 0.3, 0.1);
+        assert_eq!(desaturate_into_gamut(inside, 0.25), inside);
     }
 
     #[test]

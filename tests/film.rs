@@ -183,10 +183,12 @@ fn cornell_box_walls_have_their_colours_and_no_pixel_is_nan_or_negative() {
     for (name, ch) in &img.channels {
         assert!(ch.iter().all(|v| v.is_finite()), "channel {name} has a NaN or infinite pixel");
     }
-    // Y is a luminance estimate built from non-negative splats: it can never be negative.
-    // (R, G, B of single noisy pixels may dip below zero: a lone spectral photon can lie outside
-    // the sRGB gamut, and the EXR keeps the unbiased linear estimate rather than clipping it.)
+    // Y is a luminance estimate built from non-negative splats: it can never be negative; R, G, B
+    // are brought into the sRGB gamut at constant Y, so no channel may be negative either.
     assert!(y.iter().all(|&v| v >= 0.0), "negative Y");
+    for c in ["R", "G", "B"] {
+        assert!(img.channels[c].iter().all(|&v| v >= 0.0), "negative {c}");
+    }
     assert!(img.channels["Y_var"].iter().all(|&v| v >= 0.0), "negative Y_var");
     // The red wall fills the image's left edge band at mid height, the green one the right.
     let band = |x0: usize, x1: usize| {
