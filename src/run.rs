@@ -13,8 +13,16 @@ use crate::transport::{Kernel, TransportOptions};
 
 /// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
 pub const BATCH_PHOTONS: u64 = 16_384;
-/// A relative-error stop is judged only after this many batches, so the variance estimate is sound.
+/// A relative-error stop is judged only after this many batches, so the variance estimate is
+/// sound: with per-history errors 4 batches (65 536 histories) suffice; errors from the spread
+/// between batches (stratified runs) need about 30 degrees of freedom not to stop on a lucky draw.
 pub const MIN_BATCHES_FOR_REL_ERROR: u64 = 4;
+pub const MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES: u64 = 30;
+/// An open-ended `--rel-error` run whose chosen tallies are still all zero after this many
+/// batches (16.4 million photons) stops: no photon reaches them, and none ever may.
+pub const MAX_BATCHES_WITHOUT_SIGNAL: u64 = 1000;
+/// Most worker threads accepted.
+pub const MAX_THREADS: usize = 1024;
 
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
@@ -83,8 +91,8 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
             return Err(Error::Usage(format!("--time must be a positive number of seconds, found {t}")));
         }
     }
-    if opts.threads == Some(0) {
-        return Err(Error::Usage("--threads must be at least 1".into()));
+    if opts.threads.is_some_and(|t| t == 0 || t > MAX_THREADS) {
+        return Err(Error::Usage(format!("--threads must be between 1 and {MAX_THREADS}")));
     }
     let mut chosen = Vec::new();
     for name in &opts.tallies {
@@ -170,12 +178,18 @@ pub fn simulate_observed(
     // ahead of the merge, which bounds memory; a stop (target met, time, Ctrl-C) tells them to
     // quit after the batch in hand, and batches past the stopping point are discarded.
     let window = 2 * threads as u64;
+    let workers = (threads as u64).min(total_batches.max(1)) as usize;
+    let min_batches = match opts.transport.error_model() {
+        crate::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
+        crate::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
+    };
+    let mut failure: Option<String> = None;
     let next = AtomicU64::new(0);
     let merged = AtomicU64::new(0);
     let quit = AtomicBool::new(false);
     let (tx, rx) = std::sync::mpsc::channel();
     pool.in_place_scope(|scope| {
-        for _ in 0..threads {
+        for _ in 0..workers {
             let tx = tx.clone();
             let (next, merged, quit, kernel) = (&next, &merged, &quit, &kernel);
             scope.spawn(move |_| loop {
@@ -186,7 +200,22 @@ pub fn simulate_observed(
                 while b >= merged.load(Ordering::Acquire) + window && !quit.load(Ordering::Relaxed) {
                     std::thread::sleep(std::time::Duration::from_micros(100));
                 }
-                if quit.load(Ordering::Relaxed) || tx.send((b, kernel.trace_batch(b, photons_in(b)))).is_err() {
+                if quit.load(Ordering::Relaxed) {
+                    break;
+                }
+                // A panic in a batch must end the run with an error, not leave the merge waiting
+                // for a batch that never comes.
+                let traced =
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kernel.trace_batch(b, photons_in(b))))
+                        .map_err(|e| {
+                            quit.store(true, Ordering::Relaxed);
+                            let what = e
+                                .downcast_ref::<&str>()
+                                .map(|s| s.to_string())
+                                .or_else(|| e.downcast_ref::<String>().cloned());
+                            format!("batch {b} failed: {}", what.unwrap_or_else(|| "panic".into()))
+                        });
+                if tx.send((b, traced)).is_err() {
                     break;
                 }
             });
@@ -196,7 +225,15 @@ pub fn simulate_observed(
         let mut want = 0u64;
         'merge: while want < total_batches {
             let Ok((b, result)) = rx.recv() else { break };
-            pending.insert(b, result);
+            match result {
+                Ok(r) => {
+                    pending.insert(b, r);
+                }
+                Err(e) => {
+                    failure = Some(e);
+                    break 'merge;
+                }
+            }
             while let Some((t, f)) = pending.remove(&want) {
                 tallies.merge(&t);
                 if let (Some(film), Some(f)) = (film.as_mut(), &f) {
@@ -214,11 +251,15 @@ pub fn simulate_observed(
                     p.set_position(tallies.photons);
                 }
                 if let Some(target) = opts.rel_error {
-                    if want >= MIN_BATCHES_FOR_REL_ERROR
-                        && tallies
-                            .worst_rel_error(rel_error_surfaces, opts.transport.error_model())
-                            .is_some_and(|e| e <= target)
-                    {
+                    let worst = tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model());
+                    if worst.is_none() && cap == u64::MAX && want >= MAX_BATCHES_WITHOUT_SIGNAL {
+                        eprintln!(
+                            "warning: after {} photons no photon has reached the tallies --rel-error targets; stopping",
+                            tallies.photons
+                        );
+                        break 'merge;
+                    }
+                    if want >= min_batches && worst.is_some_and(|e| e <= target) {
                         stop = StopReason::RelError;
                         break 'merge;
                     }
@@ -237,6 +278,9 @@ pub fn simulate_observed(
         // Drain, so no worker blocks on a send; its batches are past the stop and are dropped.
         drop(rx);
     });
+    if let Some(e) = failure {
+        return Err(Error::Other(e));
+    }
     if let Some(p) = progress {
         p.finish_and_clear();
     }

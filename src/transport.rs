@@ -233,6 +233,10 @@ impl Kernel<'_> {
                         if EXPECTED && weight >= ROULETTE_WEIGHT {
                             absorbed.add(m, weight * (1.0 - keep));
                             weight *= keep;
+                            if weight == 0.0 {
+                                // exp(−αt) underflowed: the medium took everything.
+                                break;
+                            }
                         } else if s.uniform() >= keep {
                             absorbed.add(m, weight);
                             break;

@@ -784,7 +784,12 @@ fn zero_photons() {
 
 #[test]
 fn zero_threads() {
-    expect_bad_args("threads-0", &["--threads", "0"], &["--threads must be at least 1"]);
+    expect_bad_args("threads-0", &["--threads", "0"], &["--threads must be between 1 and 1024"]);
+}
+
+#[test]
+fn absurd_thread_count() {
+    expect_bad_args("threads-5000", &["--threads", "5000"], &["--threads must be between 1 and 1024"]);
 }
 
 #[test]
