@@ -4,18 +4,10 @@
 //! balance the ledger exactly.
 
 mod common;
-use common::{assert_z, run_with, surface};
+use common::{assert_z, cornell_toml, run_with, surface};
 
 use photon::output::Flux;
 use photon::transport::{Estimator, TransportOptions};
-
-fn cornell() -> String {
-    let root = env!("CARGO_MANIFEST_DIR");
-    std::fs::read_to_string(format!("{root}/scenes/cornell_box.toml"))
-        .unwrap()
-        .replace("../spectra/", &format!("{root}/spectra/"))
-        .replace("meshes/", &format!("{root}/scenes/meshes/"))
-}
 
 fn compare(a: &Flux, b: &Flux, label: &str) {
     assert!(a.ledger.relative_residual() < 1e-9 && b.ledger.relative_residual() < 1e-9, "{label}: ledger");
@@ -34,7 +26,7 @@ fn compare(a: &Flux, b: &Flux, label: &str) {
 
 #[test]
 fn expected_value_and_analog_absorption_agree_on_the_cornell_box() {
-    let toml = cornell();
+    let toml = cornell_toml();
     let plain = |estimator| TransportOptions { estimator, stratified: false, hero: true };
     let analog = run_with(&toml, 300_000, 1, plain(Estimator::Analog));
     let expected = run_with(&toml, 150_000, 2, plain(Estimator::Expected));
@@ -43,7 +35,7 @@ fn expected_value_and_analog_absorption_agree_on_the_cornell_box() {
 
 #[test]
 fn stratified_and_plain_emission_agree_on_the_cornell_box_and_plates() {
-    let toml = cornell();
+    let toml = cornell_toml();
     for estimator in [Estimator::Analog, Estimator::Expected] {
         let opts = |stratified| TransportOptions { estimator, stratified, hero: true };
         // 20 batches: the stratified run's errors come from the spread between its batches.

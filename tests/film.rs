@@ -3,6 +3,9 @@
 //! 6 for each of hundreds of pixels, whose Y_var comes from ~1000 film batches of 1024 photons,
 //! so P(|z| > 6) ≈ 2e-9 per pixel keeps the whole image's false-failure chance below 1e-5.
 
+mod common;
+use common::{cornell_toml, temp_dir};
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -32,13 +35,6 @@ fn read_exr(path: &Path) -> Exr {
         .map(|c| (c.name.to_string(), c.sample_data.values_as_f32().collect::<Vec<f32>>()))
         .collect();
     Exr { width: size.0, height: size.1, channels }
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("photon-film-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Writes `toml` to a scene file, runs it, and returns the image and output folder.
@@ -167,12 +163,7 @@ fn white_plate_under_collimated_light_reads_rho_e_over_pi() {
 }
 
 fn cornell(args: &[&str], name: &str) -> (Exr, PathBuf) {
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell_box.toml");
-    let toml = std::fs::read_to_string(&scene)
-        .unwrap()
-        .replace("../spectra/", &format!("{}/spectra/", env!("CARGO_MANIFEST_DIR")))
-        .replace("meshes/", &format!("{}/scenes/meshes/", env!("CARGO_MANIFEST_DIR")))
-        .replace("resolution = [512, 512]", "resolution = [64, 64]");
+    let toml = cornell_toml().replace("resolution = [512, 512]", "resolution = [64, 64]");
     render(name, &toml, args)
 }
 

@@ -4,9 +4,8 @@
 //! fixed seed (false-failure chance 6e-5 each); leak checks demand exact zeros.
 
 mod common;
-use common::{assert_z, scene, surface};
+use common::{assert_z, cornell_toml, scene, surface, temp_dir};
 
-use std::path::PathBuf;
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
@@ -30,13 +29,6 @@ fn run_scene_with(mut s: Scene, photons: u64, seed: u64, transport: TransportOpt
 fn run(toml: &str, photons: u64, seed: u64) -> (Flux, RunResult) {
     let (s, r) = run_scene(scene(toml), photons, seed);
     (output::flux(&s, &r), r)
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("photon-hard-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 fn assert_all_finite(f: &Flux) {
@@ -214,19 +206,15 @@ fn light_flush_with_a_surface_emits_only_away_from_it() {
 }
 
 fn cornell_with_blocks_lifted(lift_mm: f64) -> String {
-    let root = env!("CARGO_MANIFEST_DIR");
-    let block = |name: &str| {
-        (
-            format!("file = \"meshes/cornell_{name}_block.obj\" }}"),
-            format!("file = \"{root}/scenes/meshes/cornell_{name}_block.obj\", transform = {{ translate = [0, {lift_mm}, 0] }} }}"),
-        )
-    };
-    let (short, tall) = (block("short"), block("tall"));
-    std::fs::read_to_string(format!("{root}/scenes/cornell_box.toml"))
-        .unwrap()
-        .replace("../spectra/", &format!("{root}/spectra/"))
-        .replace(&short.0, &short.1)
-        .replace(&tall.0, &tall.1)
+    let mut toml = cornell_toml();
+    for block in ["short", "tall"] {
+        let file = format!("cornell_{block}_block.obj\" }}");
+        toml = toml.replace(
+            &file,
+            &format!("cornell_{block}_block.obj\", transform = {{ translate = [0, {lift_mm}, 0] }} }}"),
+        );
+    }
+    toml
 }
 
 #[test]

@@ -8,6 +8,9 @@ use std::sync::atomic::AtomicBool;
 use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::load;
 
+mod common;
+use common::temp_dir;
+
 fn bundled_scenes() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes"))
         .unwrap()
@@ -47,12 +50,6 @@ fn every_bundled_scene_balances_its_ledger() {
 
 fn photon() -> Command {
     Command::new(env!("CARGO_BIN_EXE_photon"))
-}
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("photon-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
 }
 
 #[test]

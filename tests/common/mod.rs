@@ -40,3 +40,21 @@ pub fn assert_z(what: &str, measured: f64, expected: f64, stderr: f64, bound: f6
     let z = (measured - expected) / stderr;
     assert!(z.abs() <= bound, "{what}: measured {measured}, expected {expected}, stderr {stderr}, z = {z:.2}");
 }
+
+/// A fresh, empty folder for one test, unique to this process.
+pub fn temp_dir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("photon-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The bundled Cornell box with its spectrum and mesh paths made absolute, so the text can be
+/// loaded from anywhere or changed by a test.
+pub fn cornell_toml() -> String {
+    let root = env!("CARGO_MANIFEST_DIR");
+    std::fs::read_to_string(format!("{root}/scenes/cornell_box.toml"))
+        .unwrap()
+        .replace("../spectra/", &format!("{root}/spectra/"))
+        .replace("meshes/", &format!("{root}/scenes/meshes/"))
+}
