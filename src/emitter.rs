@@ -31,6 +31,11 @@ struct EmitLight {
     spectrum_shape: crate::spectrum::Spectrum,
     /// Grey transport's colour weights: ∫S·(x̄,ȳ,z̄)dλ / (∫S dλ · ∫ȳ dλ) for the light's spectrum S.
     grey_xyz: Vec3A,
+    power_w: f64,
+    /// Total emitting area (0 for a point light).
+    area_m2: f64,
+    /// ∫S dλ over the wavelength range.
+    spectrum_integral: f64,
 }
 
 /// A photon at birth.
@@ -77,11 +82,13 @@ impl Emitter {
             .lights
             .iter()
             .map(|l| {
+                let mut area_m2 = 0.0;
                 let origin = match &l.shape {
                     LightShape::Area { surface } => {
                         let prims: Vec<u32> =
                             (0..geo.len() as u32).filter(|&p| geo.surface[p as usize] == *surface as u32).collect();
                         let areas: Vec<f64> = prims.iter().map(|&p| geo.area(p as usize)).collect();
+                        area_m2 = areas.iter().sum();
                         Origin::Area { pick: Discrete::new(&areas), prims }
                     }
                     LightShape::Point { position, axis } => {
@@ -98,6 +105,9 @@ impl Emitter {
                     spectrum: SpectralSampler::new(&l.spectrum, range),
                     spectrum_shape: l.spectrum.clone(),
                     grey_xyz,
+                    power_w: l.power_w,
+                    area_m2,
+                    spectrum_integral: l.spectrum.integral(range),
                 }
             })
             .collect();
@@ -169,6 +179,107 @@ impl Emitter {
     #[inline]
     pub fn spectral_power(&self, light: usize, lambda_nm: f64) -> f64 {
         self.lights[light].spectrum_shape.eval(lambda_nm)
+    }
+}
+
+/// A point sampled on a light, for connecting a camera path to it.
+#[derive(Clone, Copy, Debug)]
+pub struct LightPoint {
+    pub point: Vec3A,
+    pub err: Vec3A,
+    /// Front normal of the triangle; zero for a point light.
+    pub normal: Vec3A,
+    pub prim: u32,
+    /// The axis its direction pdf is measured about (`direction_pdf`).
+    pub axis: Vec3A,
+}
+
+/// What the camera integrators ask of the lights: where they are, how they emit, and with which
+/// probabilities the emitter samples them (light by power, point uniform by area).
+impl Emitter {
+    pub fn light_count(&self) -> usize {
+        self.lights.len()
+    }
+
+    /// Light chosen by power from `u`, and the probability of that choice.
+    #[inline]
+    pub fn pick_light(&self, u: f64) -> (usize, f64) {
+        let l = self.pick.sample(u);
+        (l, self.pick_pdf(l))
+    }
+
+    #[inline]
+    pub fn pick_pdf(&self, light: usize) -> f64 {
+        self.lights[light].power_w / self.total_power_w
+    }
+
+    #[inline]
+    pub fn is_point(&self, light: usize) -> bool {
+        matches!(self.lights[light].origin, Origin::Point { .. })
+    }
+
+    /// A collimated light emits along a single direction: no pinhole and no connection sees it.
+    #[inline]
+    pub fn is_collimated(&self, light: usize) -> bool {
+        self.lights[light].distribution == Distribution::Collimated
+    }
+
+    /// Density of a light's points: 1/A per area, or 1 (a delta) for a point light.
+    #[inline]
+    pub fn position_pdf(&self, light: usize) -> f64 {
+        let a = self.lights[light].area_m2;
+        if a > 0.0 {
+            1.0 / a
+        } else {
+            1.0
+        }
+    }
+
+    pub fn power_w(&self, light: usize) -> f64 {
+        self.lights[light].power_w
+    }
+
+    /// S(λ)/∫S dλ: the share of the light's power per nm at λ.
+    #[inline]
+    pub fn spectral_share(&self, light: usize, lambda_nm: f64) -> f64 {
+        let l = &self.lights[light];
+        l.spectrum_shape.eval(lambda_nm) / l.spectrum_integral
+    }
+
+    /// Colour weights of grey transport (see `EmitLight::grey_xyz`).
+    #[inline]
+    pub fn grey_xyz(&self, light: usize) -> Vec3A {
+        self.lights[light].grey_xyz
+    }
+
+    /// A point on light `light`, uniform by area, from three uniform numbers.
+    #[inline]
+    pub fn sample_point(&self, geo: &crate::geometry::Geometry, light: usize, u: [f64; 3]) -> LightPoint {
+        match &self.lights[light].origin {
+            Origin::Area { prims, pick } => {
+                let prim = prims[pick.sample(u[0])];
+                let b = uniform_triangle(u[1] as f32, u[2] as f32);
+                let (point, err) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b });
+                let normal = geo.normals[prim as usize];
+                LightPoint { point, err, normal, prim, axis: normal }
+            }
+            Origin::Point { position, axis } => {
+                LightPoint { point: *position, err: Vec3A::ZERO, normal: Vec3A::ZERO, prim: NO_PRIM, axis: *axis }
+            }
+        }
+    }
+
+    /// An emission direction about `axis` from the light's distribution, and its solid-angle pdf
+    /// (1 as a placeholder for a collimated light's delta).
+    #[inline]
+    pub fn sample_direction(&self, light: usize, axis: Vec3A, u1: f32, u2: f32) -> (Vec3A, f64) {
+        let l = &self.lights[light];
+        let dir = match (&l.origin, l.distribution) {
+            (Origin::Point { .. }, Distribution::Isotropic) => uniform_sphere(u1, u2),
+            (_, d) => direction(d, axis, u1, u2),
+        };
+        let pdf = if l.distribution == Distribution::Collimated { 1.0 } else { self.direction_pdf(light, axis, dir) as f64 };
+        (dir, pdf)
     }
 }
 

@@ -86,6 +86,40 @@ impl CameraModel {
             importance: 1.0 / (d2 * self.pixel_area * cos_c * cos_c * cos_c),
         })
     }
+
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Unit direction through the point (u, v) ∈ [0,1)² of pixel `pixel`: a uniform point on the
+    /// pixel's footprint on the unit-distance image plane, so the pixel's radiance estimate is
+    /// simply L along the ray (see the module comment).
+    #[inline]
+    pub fn ray_direction(&self, pixel: usize, u: f32, v: f32) -> Vec3A {
+        let (row, col) = (pixel / self.width, pixel % self.width);
+        let sx = ((col as f32 + u) / self.width as f32) * 2.0 - 1.0;
+        let sy = 1.0 - ((row as f32 + v) / self.height as f32) * 2.0;
+        (self.forward + sx * self.half_w * self.right + sy * self.half_h * self.up).normalize()
+    }
+
+    /// Solid-angle density with which the camera's samples, spread evenly over the whole image,
+    /// leave along unit `w`: 1/(A_image cos³θ_c) inside the field of view, else 0. Multiple
+    /// importance sampling compares it with the light subpaths' densities: pixel j's n samples
+    /// have density 1/(A_pix cos³θ_c) each, and n/A_pix = N/A_image for N samples over the image,
+    /// one light subpath per camera sample.
+    #[inline]
+    pub fn direction_pdf(&self, w: Vec3A) -> f64 {
+        let z = w.dot(self.forward);
+        if z <= 0.0 {
+            return 0.0;
+        }
+        let (sx, sy) = (w.dot(self.right) / z / self.half_w, w.dot(self.up) / z / self.half_h);
+        if !(sx > -1.0 && sx < 1.0 && sy > -1.0 && sy < 1.0) {
+            return 0.0;
+        }
+        let image_area = 4.0 * self.half_w as f64 * self.half_h as f64;
+        1.0 / (image_area * (z as f64).powi(3))
+    }
 }
 
 /// Photons per film batch: the unit whose spread gives each pixel's variance. Small, so even
@@ -110,6 +144,11 @@ pub struct FilmBatch {
     pub photon: u32,
     /// Visibility rays cast toward the camera.
     pub shadow_rays: u64,
+    /// Camera integrators (path, bdpt): each sample's XYZ radiance estimate for its own pixel, in
+    /// sample order; sample k of the run (counting from 0) belongs to pixel k mod pixels.
+    pub samples: Vec<[f32; 3]>,
+    /// Run-wide index of `samples[0]`.
+    pub first_sample: u64,
 }
 
 impl FilmBatch {
@@ -121,6 +160,9 @@ impl FilmBatch {
 
 /// The run's film: splats merged in batch order into f64 sums, plus, per film batch b of n_b
 /// photons with pixel sums S_b, Σ S_b²/n_b for each pixel's Y and for the whole image's Y.
+/// Camera integrators add a second part: per pixel the sum of its own samples' values, ΣY² and
+/// the sample count; that part's pixel value is the samples' mean and its variance the sample
+/// variance over the count (pixels are independent there: each sample touches one pixel).
 pub struct Film {
     pub width: usize,
     pub height: usize,
@@ -132,6 +174,27 @@ pub struct Film {
     /// Scratch for one film batch's per-pixel Y, and the pixels it touched.
     scratch_y: Vec<f64>,
     touched: Vec<u32>,
+    camera: Option<CameraPart>,
+}
+
+struct CameraPart {
+    xyz_sum: Array2<f64>,
+    y_sq: Vec<f64>,
+    count: Vec<u32>,
+}
+
+impl CameraPart {
+    /// (mean XYZ, variance of the mean Y) of pixel `p`; no samples give zeros, one sample no variance.
+    fn pixel(&self, p: usize) -> ([f64; 3], f64) {
+        let n = self.count[p] as f64;
+        if n == 0.0 {
+            return ([0.0; 3], 0.0);
+        }
+        let s = self.xyz_sum.row(p);
+        let mean_y = s[1] / n;
+        let var = if n > 1.0 { (self.y_sq[p] / n - mean_y * mean_y).max(0.0) / (n - 1.0) } else { 0.0 };
+        ([s[0] / n, mean_y, s[2] / n], var)
+    }
 }
 
 /// The finished image: per pixel linear XYZ and RGB radiance, and Y's variance.
@@ -157,11 +220,34 @@ impl Film {
             film_batches: 0,
             scratch_y: vec![0.0; pixels],
             touched: Vec::new(),
+            camera: None,
         }
+    }
+
+    /// Fewest samples any pixel has from a camera integrator (None for pure light tracing).
+    pub fn min_samples_per_pixel(&self) -> Option<u32> {
+        self.camera.as_ref().map(|c| c.count.iter().copied().min().unwrap_or(0))
     }
 
     /// Adds one transport batch of `photons` photons. Called in batch order.
     pub fn merge(&mut self, b: &FilmBatch, photons: u64) {
+        if !b.samples.is_empty() {
+            let pixels = self.width * self.height;
+            let cam = self.camera.get_or_insert_with(|| CameraPart {
+                xyz_sum: Array2::zeros((pixels, 3)),
+                y_sq: vec![0.0; pixels],
+                count: vec![0; pixels],
+            });
+            for (i, v) in b.samples.iter().enumerate() {
+                let p = ((b.first_sample + i as u64) % pixels as u64) as usize;
+                let mut acc = cam.xyz_sum.row_mut(p);
+                acc[0] += v[0] as f64;
+                acc[1] += v[1] as f64;
+                acc[2] += v[2] as f64;
+                cam.y_sq[p] += v[1] as f64 * v[1] as f64;
+                cam.count[p] += 1;
+            }
+        }
         let sub = FILM_BATCH_PHOTONS as u64;
         let mut splats = b.splats.iter().peekable();
         for k in 0..photons.div_ceil(sub) {
@@ -213,7 +299,16 @@ impl Film {
         let n = self.photons.max(1) as f64;
         let total: f64 = self.xyz_sum.column(1).sum();
         let var = self.variance_of_mean(total, self.image_y_sq_over_n);
-        (total / n * emitted_w / pixels, var.sqrt() * emitted_w / pixels)
+        let (mut mean, mut var) = (total / n * emitted_w / pixels, var * (emitted_w / pixels).powi(2));
+        if let Some(cam) = &self.camera {
+            // Mean of independent pixel means: variance Σ var_p / P².
+            for p in 0..self.width * self.height {
+                let (m, v) = cam.pixel(p);
+                mean += m[1] / pixels;
+                var += v / (pixels * pixels);
+            }
+        }
+        (mean, var.sqrt())
     }
 
     /// The image in watts: each photon carries Φ_total/N; Y_var from the film batches' spread.
@@ -226,7 +321,14 @@ impl Film {
         let mut y_var = vec![0.0f32; pixels];
         for p in 0..pixels {
             let s = self.xyz_sum.row(p);
-            let v = Vec3A::new((s[0] * w) as f32, (s[1] * w) as f32, (s[2] * w) as f32);
+            let mut sum = [s[0] * w, s[1] * w, s[2] * w];
+            let mut var = self.variance_of_mean(s[1], self.y_sq_over_n[p]) * emitted_w * emitted_w;
+            if let Some(cam) = &self.camera {
+                let (m, v) = cam.pixel(p);
+                sum = [sum[0] + m[0], sum[1] + m[1], sum[2] + m[2]];
+                var += v;
+            }
+            let v = Vec3A::new(sum[0] as f32, sum[1] as f32, sum[2] as f32);
             xyz[[p, 0]] = v.x;
             xyz[[p, 1]] = v.y;
             xyz[[p, 2]] = v.z;
@@ -235,7 +337,7 @@ impl Film {
             rgb[[row, col, 0]] = c.x;
             rgb[[row, col, 1]] = c.y;
             rgb[[row, col, 2]] = c.z;
-            y_var[p] = (self.variance_of_mean(s[1], self.y_sq_over_n[p]) * emitted_w * emitted_w) as f32;
+            y_var[p] = var as f32;
         }
         Image { width: self.width, height: self.height, xyz, rgb, y_var }
     }

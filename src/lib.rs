@@ -5,6 +5,7 @@
 //! loop over the `geometry` BVH, `material` decisions) → `tally` (per-history moments, ledger) →
 //! `run` (batches, ordered reduction, stopping) → `output` (atomic files).
 
+pub mod camera_paths;
 pub mod color;
 pub mod converge;
 pub mod emitter;

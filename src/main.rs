@@ -104,6 +104,10 @@ struct TransportArgs {
     /// One wavelength per photon in the image instead of four hero wavelengths.
     #[arg(long = "no-hero")]
     no_hero: bool,
+    /// What makes the image: light tracing, path tracing or BDPT (default: the scene's
+    /// `[simulation] integrator`, else light). flux.json always comes from the particle tracer.
+    #[arg(long, value_enum)]
+    integrator: Option<photon::camera_paths::Integrator>,
 }
 
 impl TransportArgs {
@@ -146,6 +150,7 @@ fn main() -> ExitCode {
                 time_s: time,
                 progress: !quiet,
                 no_image,
+                integrator: transport.integrator,
                 transport: transport.options(),
             };
             run(&scene, out, &opts, quiet)
@@ -158,6 +163,7 @@ fn main() -> ExitCode {
                 threads,
                 no_image,
                 progress: false,
+                integrator: transport.integrator,
                 transport: transport.options(),
                 ..Default::default()
             };
@@ -199,6 +205,11 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
         if film.film_batches() < 2 {
             eprintln!(
                 "warning: fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0"
+            );
+        }
+        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
+            eprintln!(
+                "warning: some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
             );
         }
     }

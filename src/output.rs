@@ -61,6 +61,8 @@ pub struct RunInfo {
     /// The transport options and whether the image used hero wavelengths.
     pub transport_options: crate::transport::TransportOptions,
     pub hero_wavelengths: bool,
+    /// What made the image (flux always comes from the particle tracer).
+    pub integrator: crate::camera_paths::Integrator,
     /// Mean Y over the image and its standard error, when an image was made.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_mean_y: Option<(f64, f64)>,
@@ -131,6 +133,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         },
         transport_options: r.transport,
         hero_wavelengths: r.hero,
+        integrator: r.integrator,
         mean_scatterings: r.tallies.mean_scatterings().0,
         mean_scatterings_stderr: r.tallies.mean_scatterings().1,
     }

@@ -4,6 +4,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
+use crate::camera_paths::{ImageKernel, Integrator};
 use crate::emitter::Emitter;
 use crate::error::Error;
 use crate::film::{CameraModel, Film};
@@ -37,6 +38,8 @@ pub struct RunOptions {
     pub progress: bool,
     /// Skip the camera film entirely.
     pub no_image: bool,
+    /// Overrides the scene's `[simulation] integrator`.
+    pub integrator: Option<crate::camera_paths::Integrator>,
     pub transport: TransportOptions,
 }
 
@@ -61,6 +64,8 @@ pub struct RunResult {
     pub transport: TransportOptions,
     /// Whether the film used hero wavelengths.
     pub hero: bool,
+    /// Which integrator made the image (flux always comes from the particle tracer).
+    pub integrator: Integrator,
 }
 
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
@@ -77,6 +82,9 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     }
     if opts.no_image {
         scene.effects.camera = false;
+    }
+    if let Some(i) = opts.integrator {
+        scene.simulation.integrator = i;
     }
     if let Some(b) = opts.max_bounces {
         scene.simulation.max_bounces = b;
@@ -158,7 +166,18 @@ pub fn simulate_observed(
     let emitter = Emitter::new(scene);
     let seed = scene.simulation.seed;
     let camera = scene.camera.as_ref().filter(|_| scene.effects.camera).map(CameraModel::new);
-    let kernel = Kernel { scene, emitter: &emitter, camera: camera.as_ref(), options: opts.transport };
+    let integrator = scene.simulation.integrator;
+    let image_kernel = match (&camera, integrator) {
+        (Some(cam), Integrator::Path | Integrator::Bdpt) => Some(ImageKernel::new(scene, &emitter, cam, integrator)),
+        _ => None,
+    };
+    let kernel = Kernel {
+        scene,
+        emitter: &emitter,
+        camera: camera.as_ref().filter(|_| integrator == Integrator::Light),
+        image: image_kernel.as_ref(),
+        options: opts.transport,
+    };
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
     let start = Instant::now();
@@ -294,6 +313,7 @@ pub fn simulate_observed(
         film,
         transport: opts.transport,
         hero,
+        integrator,
     })
 }
 

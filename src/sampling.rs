@@ -16,8 +16,15 @@ pub struct Sampler {
 
 impl Sampler {
     pub fn for_batch(seed: u64, batch: u64) -> Self {
+        Self::for_stream(seed, 0, batch)
+    }
+
+    /// Stream `stream` of a batch: the particle tracer uses stream 0, the camera integrators 1, so
+    /// the two never share random numbers.
+    pub fn for_stream(seed: u64, stream: u64, batch: u64) -> Self {
         let mut mix = SplitMix64::seed_from_u64(seed);
-        let key = mix.next_u64() ^ batch.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let key =
+            mix.next_u64() ^ batch.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ stream.wrapping_mul(0xD1B5_4A32_D192_ED03);
         Sampler { rng: Xoshiro256PlusPlus::seed_from_u64(key) }
     }
 

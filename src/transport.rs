@@ -57,11 +57,13 @@ impl Default for TransportOptions {
     }
 }
 
-/// What a batch needs besides the scene: the emitter, the camera when the film is on, options.
+/// What a batch needs besides the scene: the emitter, the camera when the light tracer makes
+/// the image, the camera integrator when one does, and options.
 pub struct Kernel<'a> {
     pub scene: &'a Scene,
     pub emitter: &'a Emitter,
     pub camera: Option<&'a CameraModel>,
+    pub image: Option<&'a crate::camera_paths::ImageKernel<'a>>,
     pub options: TransportOptions,
 }
 
@@ -88,6 +90,16 @@ impl Kernel<'_> {
         if let Some(f) = &film {
             tallies.counters.shadow_rays = f.shadow_rays;
             tallies.counters.splats = f.splats.len() as u64;
+        }
+        if let Some(image) = self.image {
+            // The same batch index and size for the camera samples: sample k of the run is the
+            // k-th photon's counterpart, so stopping at a batch boundary stops both together.
+            let first = batch * crate::run::BATCH_PHOTONS;
+            let (f, c) = image.trace_batch(self.scene.simulation.seed, batch, first, count);
+            tallies.counters.rays += c.rays;
+            tallies.counters.shadow_rays += c.shadow_rays;
+            tallies.counters.splats += c.splats;
+            film = Some(f);
         }
         tallies.counters.trace_seconds = start.elapsed().as_secs_f64();
         (tallies, film)

@@ -490,10 +490,18 @@ impl<'s> Loader<'s> {
             max_bounces: 100_000,
             wavelength_range_nm: (360.0, 830.0),
             photons_given: false,
+            integrator: crate::camera_paths::Integrator::Light,
         };
         root.with("simulation", |n| {
             let t = n.table()?;
-            t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm"])?;
+            t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm", "integrator"])?;
+            if let Some(i) = t.with("integrator", |n| {
+                let name = n.str()?;
+                crate::camera_paths::Integrator::parse(&name)
+                    .ok_or_else(|| n.err(format!("unknown integrator \"{name}\"; use \"light\", \"path\" or \"bdpt\"")))
+            })? {
+                sim.integrator = i;
+            }
             if let Some(p) = t.with("photons", |n| n.u64())? {
                 if p == 0 {
                     return Err(t.err_at("photons", "photons must be at least 1"));

@@ -24,6 +24,8 @@ pub struct Simulation {
     pub wavelength_range_nm: (f64, f64),
     /// Which of the above were written in the file (a flag may still override them).
     pub photons_given: bool,
+    /// Which estimator makes the camera image (`light`, `path` or `bdpt`).
+    pub integrator: crate::camera_paths::Integrator,
 }
 
 #[derive(Clone, Debug)]

@@ -1,0 +1,494 @@
+//! Bidirectional path tracing (Veach & Guibas 1995; Veach 1997, ch. 10), laid out as in pbrt-v3
+//! §16.3. Each sample traces a light subpath y₀…y_{nL−1} (y₀ on a light chosen by power) and a
+//! camera subpath z₀…z_{nC−1} (z₀ the pinhole). Every pair (s, t) of s light and t camera
+//! vertices with s + t − 2 ≤ the scattering cap is a strategy for the path y₀…y_{s−1} z_{t−1}…z₀:
+//! - s = 0: the camera subpath itself ends on an emitter;
+//! - t = 1: y_{s−1} is connected to the camera and splatted where it projects (the light tracer);
+//! - otherwise y_{s−1} and z_{t−1} are joined by a visibility ray (s = 1: next-event estimation,
+//!   here with y₀ itself rather than a fresh light sample).
+//!
+//! Every strategy is weighted by the balance heuristic, w_s = p_s / Σᵢ pᵢ over the strategies i
+//! that could have sampled the same path (Veach 1997, §9.2.2; pbrt-v3 uses the same), computed by
+//! pbrt's ratio walk over each vertex's area densities: pdf_fwd as its own subpath sampled it, and
+//! pdf_rev as the opposite subpath would have. Delta vertices (mirror, glass, a collimated light's
+//! direction, a point light's position) cannot be connected, and strategies needing that are left
+//! out of the sum. Roulette probabilities are left out of the densities: any weights that sum to
+//! one over the strategies keep the estimate unbiased.
+
+use glam::Vec3A;
+
+use super::{
+    emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode,
+    Wavelengths,
+};
+use crate::film::FilmBatch;
+use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::sampling::Sampler;
+use crate::scene::Material;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    Camera,
+    Light(usize),
+    Surface,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Vertex {
+    kind: Kind,
+    p: Vec3A,
+    err: Vec3A,
+    /// Unit geometric normal; zero for the camera and point lights.
+    n: Vec3A,
+    prim: u32,
+    surface: u32,
+    /// Unit direction toward the previous vertex of its own subpath.
+    wo: Vec3A,
+    beta: Lanes,
+    pdf_fwd: f64,
+    pdf_rev: f64,
+    delta: bool,
+    /// The BSDF of a diffuse vertex (None for specular and absorbing ones: not connectible).
+    diffuse: Option<Diffuse>,
+    /// A light vertex's emission axis.
+    axis: Vec3A,
+}
+
+impl Vertex {
+    fn endpoint(kind: Kind, p: Vec3A, err: Vec3A, n: Vec3A, prim: u32, beta: Lanes, pdf_fwd: f64) -> Self {
+        Vertex {
+            kind,
+            p,
+            err,
+            n,
+            prim,
+            surface: u32::MAX,
+            wo: Vec3A::ZERO,
+            beta,
+            pdf_fwd,
+            pdf_rev: 0.0,
+            delta: false,
+            diffuse: None,
+            axis: n,
+        }
+    }
+}
+
+/// Buffers one batch reuses for every sample.
+#[derive(Default)]
+pub struct Scratch {
+    light: Vec<Vertex>,
+    camera: Vec<Vertex>,
+    splats: Vec<(usize, LaneXyz)>,
+}
+
+/// Turns a solid-angle density at `from` toward vertex `to` into an area density at `to`:
+/// p_A = p_ω · |cosθ_to| / d² (no cosine at the camera or a point light).
+#[inline]
+fn to_area(pdf: f64, from: Vec3A, to: &Vertex) -> f64 {
+    let w = to.p - from;
+    let d2 = w.length_squared() as f64;
+    if !(d2 > 0.0) {
+        return 0.0;
+    }
+    let cos = if to.n == Vec3A::ZERO { 1.0 } else { (to.n.dot(w).abs() as f64) / d2.sqrt() };
+    pdf * cos / d2
+}
+
+/// 0 → 1, so a delta vertex's zero density drops out of the ratios (pbrt's remap0).
+#[inline]
+fn remap0(f: f64) -> f64 {
+    if f != 0.0 {
+        f
+    } else {
+        1.0
+    }
+}
+
+impl ImageKernel<'_> {
+    /// One BDPT sample of `pixel`: its own-pixel XYZ; t = 1 splats go to `film`.
+    pub(super) fn bdpt_sample<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        pixel: usize,
+        s: &mut Sampler,
+        counters: &mut ImageCounters,
+        scratch: &mut Scratch,
+        film: &mut FilmBatch,
+    ) -> Vec3A {
+        let range = self.scene.simulation.wavelength_range_nm;
+        let mut wl = Wavelengths::sample::<SPECTRAL>(self.emitter, range, s.uniform());
+        let Scratch { light: lv, camera: cv, splats } = scratch;
+        let light = self.light_subpath::<SPECTRAL, DIELECTRIC>(&mut wl, s, lv, counters);
+        self.camera_subpath::<SPECTRAL, DIELECTRIC>(pixel, &mut wl, s, cv, counters);
+        let mut acc = LaneXyz::default();
+        splats.clear();
+        for t in 1..=cv.len() {
+            for s_count in 0..=lv.len() {
+                if s_count + t < 2 || s_count + t - 2 > self.max_scatterings {
+                    continue;
+                }
+                let Some((c, c_light, to_pixel)) = self.connect::<SPECTRAL>(lv, cv, s_count, t, light, &wl, counters)
+                else {
+                    continue;
+                };
+                let c = c * self.mis_weight(lv, cv, s_count, t);
+                match to_pixel {
+                    None => acc.add::<SPECTRAL>(self.emitter, &wl, c_light, c),
+                    Some(p) => {
+                        let mut one = LaneXyz::default();
+                        one.add::<SPECTRAL>(self.emitter, &wl, c_light, c);
+                        splats.push((p, one));
+                    }
+                }
+            }
+        }
+        // Splats join the light-traced part of the film, in units of the emitted power.
+        let scale = 1.0 / self.emitter.total_power_w as f32;
+        for (p, one) in splats.iter() {
+            let xyz = one.resolve::<SPECTRAL>(&wl) * scale;
+            if xyz.is_finite() && xyz != Vec3A::ZERO {
+                film.add(*p, xyz);
+                counters.splats += 1;
+            }
+        }
+        acc.resolve::<SPECTRAL>(&wl)
+    }
+
+    fn light_subpath<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        wl: &mut Wavelengths,
+        s: &mut Sampler,
+        path: &mut Vec<Vertex>,
+        counters: &mut ImageCounters,
+    ) -> usize {
+        path.clear();
+        let e = self.emitter;
+        let (light, pick) = e.pick_light(s.uniform());
+        let lp = e.sample_point(self.geo(), light, [s.uniform(), s.uniform(), s.uniform()]);
+        let (dir, pdf_dir) = e.sample_direction(light, lp.axis, s.uniform_f32(), s.uniform_f32());
+        // β₀ = Φ_λ/pick: power per nm. With the emission factor p(ω)/|cosθ| of `vertex_f`, the
+        // direction sampled by p(ω) leaves β unchanged.
+        let beta = light_share::<SPECTRAL>(e, light, wl) * (e.power_w(light) / pick);
+        let mut y0 =
+            Vertex::endpoint(Kind::Light(light), lp.point, lp.err, lp.normal, lp.prim, beta, pick * e.position_pdf(light));
+        y0.axis = lp.axis;
+        y0.delta = e.is_collimated(light);
+        path.push(y0);
+        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
+        self.random_walk::<SPECTRAL, DIELECTRIC>(
+            Mode::Importance,
+            path,
+            origin,
+            dir,
+            lp.prim,
+            beta,
+            pdf_dir,
+            self.max_scatterings + 1,
+            wl,
+            s,
+            counters,
+        );
+        light
+    }
+
+    fn camera_subpath<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        pixel: usize,
+        wl: &mut Wavelengths,
+        s: &mut Sampler,
+        path: &mut Vec<Vertex>,
+        counters: &mut ImageCounters,
+    ) {
+        path.clear();
+        let cam = self.camera;
+        path.push(Vertex::endpoint(Kind::Camera, cam.position, Vec3A::ZERO, Vec3A::ZERO, NO_PRIM, Lanes::ONE, 1.0));
+        let dir = cam.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
+        let pdf = cam.direction_pdf(dir);
+        // z₀ … z_{max+1}: the last may be an emitter ending a path of `max_scatterings` bounces.
+        self.random_walk::<SPECTRAL, DIELECTRIC>(
+            Mode::Radiance,
+            path,
+            cam.position,
+            dir,
+            NO_PRIM,
+            Lanes::ONE,
+            pdf,
+            self.max_scatterings + 2,
+            wl,
+            s,
+            counters,
+        );
+    }
+
+    /// Extends `path` (which holds its endpoint) by sampling until it escapes, is absorbed or
+    /// has `max_len` vertices, recording each vertex's forward density and its predecessor's
+    /// reverse density.
+    #[allow(clippy::too_many_arguments)]
+    fn random_walk<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        mode: Mode,
+        path: &mut Vec<Vertex>,
+        mut origin: Vec3A,
+        mut dir: Vec3A,
+        mut skip: u32,
+        mut beta: Lanes,
+        mut pdf_dir: f64,
+        max_len: usize,
+        wl: &mut Wavelengths,
+        s: &mut Sampler,
+        counters: &mut ImageCounters,
+    ) {
+        let geo = self.geo();
+        let mut medium: Option<u32> = None;
+        while path.len() < max_len {
+            counters.rays += 1;
+            let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
+            let prim = hit.prim as usize;
+            let surface = geo.surface[prim];
+            let material = self.materials[surface as usize];
+            let n = geo.normals[prim];
+            let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
+            if DIELECTRIC {
+                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
+                if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
+                    beta *= t;
+                }
+            }
+            let (p, err) = geo.hit_point(&hit);
+            let index = path.len();
+            let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
+            v.surface = surface;
+            v.wo = -dir;
+            v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
+            if let Material::Lambertian { reflectance, transmittance } = material {
+                v.diffuse = Some(Diffuse::new::<SPECTRAL>(reflectance, transmittance, wl));
+            }
+            path.push(v);
+            if path.len() >= max_len {
+                break;
+            }
+            let (new_dir, pdf_fwd, pdf_rev) = match material {
+                Material::Lambertian { .. } => {
+                    let bsdf = v.diffuse.expect("set above");
+                    let Some((wi, pdf, factor)) = bsdf.sample(-dir, n, s) else { break };
+                    beta *= factor;
+                    (wi, pdf, bsdf.pdf(wi, -dir, n))
+                }
+                Material::Absorber => break,
+                _ => {
+                    let dispersive = self.dispersive[surface as usize];
+                    let Some(wi) = scatter_specular::<SPECTRAL>(material, dispersive, wl, dir, n, mode, &mut beta, s)
+                    else {
+                        break;
+                    };
+                    path[index].delta = true;
+                    (wi, 0.0, 0.0)
+                }
+            };
+            path[index - 1].pdf_rev = to_area(pdf_rev, p, &path[index - 1]);
+            pdf_dir = pdf_fwd;
+            if is_dielectric {
+                medium = (new_dir.dot(n) < 0.0).then_some(surface);
+            }
+            origin = offset_ray_origin(p, err, n, new_dir);
+            dir = new_dir;
+            skip = hit.prim;
+        }
+    }
+
+    fn connectible(&self, v: &Vertex) -> bool {
+        match v.kind {
+            Kind::Camera => true,
+            Kind::Light(l) => !self.emitter.is_collimated(l),
+            Kind::Surface => v.diffuse.is_some_and(|d| d.connectible()),
+        }
+    }
+
+    fn is_delta_light(&self, y0: &Vertex) -> bool {
+        match y0.kind {
+            Kind::Light(l) => self.emitter.is_point(l) || self.emitter.is_collimated(l),
+            _ => false,
+        }
+    }
+
+    /// The light a light vertex, or a surface vertex lying on an area light, belongs to.
+    fn light_of(&self, v: &Vertex) -> Option<usize> {
+        match v.kind {
+            Kind::Light(l) => Some(l),
+            Kind::Surface => self.surface_light[v.surface as usize],
+            Kind::Camera => None,
+        }
+    }
+
+    /// Scattering factor at `v` toward unit `w`: the BSDF at a surface; at a light vertex its
+    /// emission pattern p(ω)/|cosθ| (p(ω) at a point light), so that β₀ · factor · G is the
+    /// emitted power per solid angle and area reaching the next vertex.
+    fn vertex_f(&self, v: &Vertex, w: Vec3A) -> Lanes {
+        match v.kind {
+            Kind::Light(l) => {
+                let pdf = self.emitter.direction_pdf(l, v.axis, w) as f64;
+                if v.n == Vec3A::ZERO {
+                    Lanes::splat(pdf)
+                } else {
+                    let cos = v.n.dot(w) as f64;
+                    if cos > 0.0 {
+                        Lanes::splat(pdf / cos)
+                    } else {
+                        Lanes::ZERO
+                    }
+                }
+            }
+            Kind::Surface => v.diffuse.map_or(Lanes::ZERO, |d| d.f(v.wo, w, v.n)),
+            Kind::Camera => Lanes::ZERO,
+        }
+    }
+
+    /// Area density with which `v`, reached from `prev`, samples `next` (pbrt's Vertex::Pdf).
+    fn pdf_area(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f64 {
+        match v.kind {
+            Kind::Light(_) => self.pdf_light(v, next),
+            Kind::Camera => to_area(self.camera.direction_pdf((next.p - v.p).normalize()), v.p, next),
+            Kind::Surface => {
+                let (Some(d), Some(prev)) = (v.diffuse, prev) else { return 0.0 };
+                let wp = (prev.p - v.p).normalize();
+                let wn = (next.p - v.p).normalize();
+                to_area(d.pdf(wp, wn, v.n), v.p, next)
+            }
+        }
+    }
+
+    /// Area density at `next` of the emission direction from light point `v`.
+    fn pdf_light(&self, v: &Vertex, next: &Vertex) -> f64 {
+        let Some(l) = self.light_of(v) else { return 0.0 };
+        let axis = if v.kind == Kind::Surface { v.n } else { v.axis };
+        let w = (next.p - v.p).normalize();
+        to_area(self.emitter.direction_pdf(l, axis, w) as f64, v.p, next)
+    }
+
+    /// Density of `v` as the light subpath's origin: pick · 1/A.
+    fn pdf_light_origin(&self, v: &Vertex) -> f64 {
+        self.light_of(v).map_or(0.0, |l| self.emitter.pick_pdf(l) * self.emitter.position_pdf(l))
+    }
+
+    /// The unweighted contribution of strategy (s, t), the light its power came from, and for
+    /// t = 1 the pixel it lands in.
+    #[allow(clippy::too_many_arguments)]
+    fn connect<const SPECTRAL: bool>(
+        &self,
+        lv: &[Vertex],
+        cv: &[Vertex],
+        s: usize,
+        t: usize,
+        light: usize,
+        wl: &Wavelengths,
+        counters: &mut ImageCounters,
+    ) -> Option<(Lanes, usize, Option<usize>)> {
+        if s == 0 {
+            let pt = &cv[t - 1];
+            if pt.kind != Kind::Surface {
+                return None;
+            }
+            let l = self.surface_light[pt.surface as usize]?;
+            let le = emitted_radiance::<SPECTRAL>(self.emitter, l, pt.n, pt.wo, wl);
+            return (!le.is_zero()).then_some((pt.beta * le, l, None));
+        }
+        let qs = &lv[s - 1];
+        if !self.connectible(qs) {
+            return None;
+        }
+        if t == 1 {
+            let proj = self.camera.project(qs.p)?;
+            let w = proj.to_camera;
+            let cos = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
+            let c = qs.beta * self.vertex_f(qs, w) * (cos * proj.importance as f64);
+            if c.is_zero() {
+                return None;
+            }
+            counters.shadow_rays += 1;
+            let cam = self.camera.position;
+            self.visible(qs.p, qs.err, qs.n, qs.prim, cam, Vec3A::ZERO, Vec3A::ZERO).then_some((c, light, Some(proj.pixel)))
+        } else {
+            let pt = &cv[t - 1];
+            if !self.connectible(pt) {
+                return None;
+            }
+            let d = pt.p - qs.p;
+            let d2 = d.length_squared() as f64;
+            if !(d2 > 0.0) {
+                return None;
+            }
+            let w = d.normalize();
+            let cos_q = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
+            let cos_p = pt.n.dot(w).abs() as f64;
+            let c = qs.beta * self.vertex_f(qs, w) * self.vertex_f(pt, -w) * pt.beta * (cos_q * cos_p / d2);
+            if c.is_zero() {
+                return None;
+            }
+            counters.shadow_rays += 1;
+            self.visible(qs.p, qs.err, qs.n, qs.prim, pt.p, pt.err, pt.n).then_some((c, light, None))
+        }
+    }
+
+    /// Balance-heuristic weight of strategy (s, t): 1/(1 + Σ_{i≠s} p_i/p_s), the ratios walked
+    /// outward from the connection as in pbrt-v3's MISWeight, with the four densities next to the
+    /// connection recomputed for this strategy's path.
+    fn mis_weight(&self, lv: &[Vertex], cv: &[Vertex], s: usize, t: usize) -> f64 {
+        let qs = (s > 0).then(|| &lv[s - 1]);
+        let qs_minus = (s > 1).then(|| &lv[s - 2]);
+        let pt = &cv[t - 1];
+        let pt_minus = (t > 1).then(|| &cv[t - 2]);
+        let pt_rev = match qs {
+            Some(q) => self.pdf_area(q, qs_minus, pt),
+            None => self.pdf_light_origin(pt),
+        };
+        let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
+            Some(q) => self.pdf_area(pt, Some(q), pm),
+            None => self.pdf_light(pt, pm),
+        });
+        let qs_rev = qs.map_or(0.0, |q| self.pdf_area(pt, pt_minus, q));
+        let qs_minus_rev = match (qs, qs_minus) {
+            (Some(q), Some(qm)) => self.pdf_area(q, Some(pt), qm),
+            _ => 0.0,
+        };
+
+        let mut sum = 0.0;
+        // Camera side: z_i generated by the light subpath instead.
+        let cam_rev = |i: usize| {
+            if i == t - 1 {
+                pt_rev
+            } else if i + 2 == t {
+                pt_minus_rev
+            } else {
+                cv[i].pdf_rev
+            }
+        };
+        let cam_delta = |i: usize| i != t - 1 && cv[i].delta;
+        let mut ratio = 1.0;
+        for i in (1..t).rev() {
+            ratio *= remap0(cam_rev(i)) / remap0(cv[i].pdf_fwd);
+            if !cam_delta(i) && !cam_delta(i - 1) {
+                sum += ratio;
+            }
+        }
+        // Light side: y_i generated by the camera subpath instead.
+        let light_rev = |i: usize| {
+            if i + 1 == s {
+                qs_rev
+            } else if i + 2 == s {
+                qs_minus_rev
+            } else {
+                lv[i].pdf_rev
+            }
+        };
+        let light_delta = |i: usize| i + 1 != s && lv[i].delta;
+        ratio = 1.0;
+        for i in (0..s).rev() {
+            ratio *= remap0(light_rev(i)) / remap0(lv[i].pdf_fwd);
+            let before_is_delta = if i > 0 { light_delta(i - 1) } else { self.is_delta_light(&lv[0]) };
+            if !light_delta(i) && !before_is_delta {
+                sum += ratio;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+}

@@ -1,0 +1,450 @@
+//! The camera integrators: path tracing and bidirectional path tracing (BDPT) of the same image
+//! the light tracer makes, on the same film with the same normalisation (a pixel reads the mean
+//! radiance over its footprint; see `film`). `flux.json` still comes from the particle tracer.
+//!
+//! A run of N samples gives sample k (k = 0..N−1, in batch order) to pixel k mod P; its value
+//! is that pixel's radiance estimate, and BDPT's light-tracing strategy (t = 1) also splats into
+//! other pixels, scaled by 1/N like the light tracer's photons.
+//!
+//! Wavelengths. A spectral sample carries four wavelengths: λ₀ uniform over the range and λ₁..λ₃
+//! rotated from it by quarters of the range, so each is uniform. Every path is sampled
+//! independently of λ (lobe choices use the lanes' mean albedos), so each lane is an unbiased
+//! estimate L(λₖ)·(x̄,ȳ,z̄)(λₖ)/(∫ȳ · p(λₖ)) and the sample's value is their mean. A dispersive
+//! refraction bends the path for λ₀ alone; the sample then keeps lane 0 only (pbrt-v4's
+//! "terminate secondary wavelengths"), which is unbiased too because the decision does not depend
+//! on λ₁..λ₃. Grey transport uses one value per light and that light's mean colour.
+
+// `!(x > 0.0)` is meant: it is also true for NaN, which must stop a path as zero would.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+mod bdpt;
+mod path;
+
+use glam::Vec3A;
+use std::ops::{Mul, MulAssign};
+
+use crate::emitter::Emitter;
+use crate::film::{CameraModel, FilmBatch};
+use crate::geometry::{offset_ray_origin, Geometry};
+use crate::material::{fresnel_dielectric, reflect};
+use crate::sampling::{cosine_hemisphere, Sampler};
+use crate::scene::{Material, Scene};
+use crate::spectrum::Spectrum;
+
+/// Which estimator makes the image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// Light tracing: every photon vertex splatted to the camera (the particle tracer's own film).
+    #[default]
+    Light,
+    /// Path tracing from the camera with next-event estimation and MIS.
+    Path,
+    /// Bidirectional path tracing: all connection strategies, MIS-weighted.
+    Bdpt,
+}
+
+impl Integrator {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Integrator::Light => "light",
+            Integrator::Path => "path",
+            Integrator::Bdpt => "bdpt",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Integrator> {
+        match s {
+            "light" => Some(Integrator::Light),
+            "path" => Some(Integrator::Path),
+            "bdpt" => Some(Integrator::Bdpt),
+            _ => None,
+        }
+    }
+}
+
+pub const LANES: usize = 4;
+
+/// A value per wavelength lane.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lanes(pub [f64; LANES]);
+
+impl Lanes {
+    pub const ZERO: Lanes = Lanes([0.0; LANES]);
+    pub const ONE: Lanes = Lanes([1.0; LANES]);
+
+    #[inline]
+    pub fn splat(v: f64) -> Self {
+        Lanes([v; LANES])
+    }
+
+    /// The spectrum at the sample's wavelengths (once, for grey transport).
+    #[inline]
+    pub fn eval<const SPECTRAL: bool>(spectrum: &Spectrum, wl: &Wavelengths) -> Self {
+        if SPECTRAL {
+            Lanes(wl.lambda.map(|l| spectrum.eval(l)))
+        } else {
+            Lanes::splat(spectrum.eval(f64::NAN))
+        }
+    }
+
+    #[inline]
+    pub fn mean(&self) -> f64 {
+        self.0.iter().sum::<f64>() / LANES as f64
+    }
+
+    #[inline]
+    pub fn is_zero(&self) -> bool {
+        self.0.iter().all(|&v| v == 0.0)
+    }
+}
+
+impl Mul for Lanes {
+    type Output = Lanes;
+    #[inline]
+    fn mul(self, o: Lanes) -> Lanes {
+        Lanes(std::array::from_fn(|k| self.0[k] * o.0[k]))
+    }
+}
+
+impl Mul<f64> for Lanes {
+    type Output = Lanes;
+    #[inline]
+    fn mul(self, o: f64) -> Lanes {
+        Lanes(self.0.map(|v| v * o))
+    }
+}
+
+impl MulAssign for Lanes {
+    #[inline]
+    fn mul_assign(&mut self, o: Lanes) {
+        *self = *self * o;
+    }
+}
+
+impl MulAssign<f64> for Lanes {
+    #[inline]
+    fn mul_assign(&mut self, o: f64) {
+        *self = *self * o;
+    }
+}
+
+/// The wavelengths of one camera sample (see the module comment).
+pub struct Wavelengths {
+    pub lambda: [f64; LANES],
+    /// (x̄, ȳ, z̄)(λₖ)/(∫ȳ · p(λₖ)) with p = 1/width: the lane's radiance-to-XYZ factor.
+    colour: [Vec3A; LANES],
+    /// A dispersive event bent the path for λ₀ only: lanes 1..3 are dropped at the end.
+    terminated: bool,
+}
+
+impl Wavelengths {
+    pub fn sample<const SPECTRAL: bool>(emitter: &Emitter, range: (f64, f64), u: f64) -> Self {
+        if !SPECTRAL {
+            return Wavelengths { lambda: [f64::NAN; LANES], colour: [Vec3A::ZERO; LANES], terminated: false };
+        }
+        let width = range.1 - range.0;
+        let lambda: [f64; LANES] =
+            std::array::from_fn(|k| range.0 + (u * width + k as f64 * width / LANES as f64).rem_euclid(width));
+        Wavelengths { lambda, colour: lambda.map(|l| emitter.colour(l) * width as f32), terminated: false }
+    }
+
+    pub fn terminate_secondary(&mut self) {
+        self.terminated = true;
+    }
+}
+
+/// Per-lane XYZ of one sample's contributions, resolved into one XYZ when the sample ends.
+#[derive(Clone, Copy, Default)]
+pub struct LaneXyz([Vec3A; LANES]);
+
+impl LaneXyz {
+    /// Adds radiance `v` (per lane, per nm in spectral transport; W-based in grey) that came from
+    /// light `light`.
+    #[inline]
+    pub fn add<const SPECTRAL: bool>(&mut self, emitter: &Emitter, wl: &Wavelengths, light: usize, v: Lanes) {
+        if SPECTRAL {
+            for k in 0..LANES {
+                self.0[k] += wl.colour[k] * v.0[k] as f32;
+            }
+        } else {
+            self.0[0] += emitter.grey_xyz(light) * v.0[0] as f32;
+        }
+    }
+
+    /// The sample's XYZ: the mean over the lanes, or lane 0 alone after a dispersive event.
+    pub fn resolve<const SPECTRAL: bool>(&self, wl: &Wavelengths) -> Vec3A {
+        if !SPECTRAL || wl.terminated {
+            self.0[0]
+        } else {
+            (self.0[0] + self.0[1] + self.0[2] + self.0[3]) * (1.0 / LANES as f32)
+        }
+    }
+}
+
+/// Power per nm share of light `light` at the lanes: S(λ)/∫S (spectral) or 1 (grey).
+#[inline]
+fn light_share<const SPECTRAL: bool>(emitter: &Emitter, light: usize, wl: &Wavelengths) -> Lanes {
+    if SPECTRAL {
+        Lanes(wl.lambda.map(|l| emitter.spectral_share(light, l)))
+    } else {
+        Lanes::ONE
+    }
+}
+
+/// Radiance an area light's surface emits along unit `w` from a triangle with front normal `n`:
+/// L = Φ_λ · p(ω)/(A cosθ) (uniform over the area A, direction pdf p); zero behind.
+#[inline]
+fn emitted_radiance<const SPECTRAL: bool>(
+    emitter: &Emitter,
+    light: usize,
+    n: Vec3A,
+    w: Vec3A,
+    wl: &Wavelengths,
+) -> Lanes {
+    let cos = n.dot(w) as f64;
+    let pdf = emitter.direction_pdf(light, n, w) as f64;
+    if cos <= 0.0 || pdf <= 0.0 {
+        return Lanes::ZERO;
+    }
+    light_share::<SPECTRAL>(emitter, light, wl) * (emitter.power_w(light) * pdf * emitter.position_pdf(light) / cos)
+}
+
+/// A Lambertian vertex at the sample's wavelengths. The lobe is chosen with the lanes' mean
+/// albedos and survival (Russian roulette) has probability min(1, mean(ρ + τ)), both independent
+/// of λ, so one sampled direction serves every lane.
+#[derive(Clone, Copy, Debug)]
+pub struct Diffuse {
+    rho: Lanes,
+    tau: Lanes,
+    p_reflect: f64,
+    survival: f64,
+}
+
+impl Diffuse {
+    #[inline]
+    pub fn new<const SPECTRAL: bool>(reflectance: &Spectrum, transmittance: &Spectrum, wl: &Wavelengths) -> Self {
+        let rho = Lanes::eval::<SPECTRAL>(reflectance, wl);
+        let tau = Lanes::eval::<SPECTRAL>(transmittance, wl);
+        let (r, t) = (rho.mean(), tau.mean());
+        let p_reflect = if r + t > 0.0 { r / (r + t) } else { 1.0 };
+        Diffuse { rho, tau, p_reflect, survival: (r + t).min(1.0) }
+    }
+
+    /// BSDF between unit directions `wo` and `wi`, both pointing away from the surface: ρ/π on
+    /// the same side, τ/π through (symmetric, so either may be the incoming one).
+    #[inline]
+    pub fn f(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Lanes {
+        let same_side = wo.dot(n) * wi.dot(n) > 0.0;
+        (if same_side { self.rho } else { self.tau }) * std::f64::consts::FRAC_1_PI
+    }
+
+    /// Solid-angle pdf of sampling `wi` from `wo` (roulette left out, as MIS allows).
+    #[inline]
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
+        let cos_i = wi.dot(n);
+        let lobe = if wo.dot(n) * cos_i > 0.0 { self.p_reflect } else { 1.0 - self.p_reflect };
+        lobe * cos_i.abs() as f64 * std::f64::consts::FRAC_1_PI
+    }
+
+    /// Samples `wi` from `wo`: None when roulette absorbs the path; else the direction, its pdf
+    /// and the throughput factor f·|cosθ|/(pdf · survival).
+    #[inline]
+    pub fn sample(&self, wo: Vec3A, n: Vec3A, s: &mut Sampler) -> Option<(Vec3A, f64, Lanes)> {
+        if !(s.uniform() < self.survival) {
+            return None;
+        }
+        let n_out = if wo.dot(n) > 0.0 { n } else { -n };
+        let reflect = s.uniform() < self.p_reflect;
+        let (u1, u2) = (s.uniform_f32(), s.uniform_f32());
+        let wi = cosine_hemisphere(if reflect { n_out } else { -n_out }, u1, u2);
+        let pdf = self.pdf(wo, wi, n);
+        if !(pdf > 0.0) {
+            return None;
+        }
+        // f|cos|/pdf = (ρ/π)|cos| / (P_lobe |cos|/π) = ρ/P_lobe.
+        let (lanes, p) = if reflect { (self.rho, self.p_reflect) } else { (self.tau, 1.0 - self.p_reflect) };
+        Some((wi, pdf, lanes * (1.0 / (p * self.survival))))
+    }
+
+    pub fn connectible(&self) -> bool {
+        self.survival > 0.0
+    }
+}
+
+/// Which way a subpath carries its quantity: camera paths carry radiance, light paths power.
+/// Refraction scales radiance by (η_i/η_t)² but not power (Veach 1997, §5.2).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    Radiance,
+    Importance,
+}
+
+/// A specular event at a mirror or dielectric: the new direction, or None when roulette absorbs
+/// the path (mirrors of reflectance below 1). `beta` is updated; `d` is the travel direction.
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn scatter_specular<const SPECTRAL: bool>(
+    material: &Material,
+    dispersive: bool,
+    wl: &mut Wavelengths,
+    d: Vec3A,
+    n: Vec3A,
+    mode: Mode,
+    beta: &mut Lanes,
+    s: &mut Sampler,
+) -> Option<Vec3A> {
+    match material {
+        Material::Mirror { reflectance } => {
+            let rho = Lanes::eval::<SPECTRAL>(reflectance, wl);
+            let survival = rho.mean().min(1.0);
+            if !(s.uniform() < survival) {
+                return None;
+            }
+            *beta *= rho * (1.0 / survival);
+            Some(reflect(d, n))
+        }
+        Material::Dielectric { ior, outside_ior, .. } => {
+            if dispersive {
+                wl.terminate_secondary();
+            }
+            // Lane 0 decides: without dispersion every lane has the same η and Fresnel term.
+            let (ior, outside) = (ior.eval(wl.lambda[0]), outside_ior.eval(wl.lambda[0]));
+            let entering = d.dot(n) < 0.0;
+            let (eta_i, eta_t) = if entering { (outside, ior) } else { (ior, outside) };
+            let cos_i = (d.dot(n).abs() as f64).min(1.0);
+            let (r, cos_t) = fresnel_dielectric(cos_i, eta_i, eta_t);
+            // Reflect with probability R, refract with 1 − R: the Fresnel factors cancel.
+            if s.uniform() < r {
+                Some(reflect(d, n))
+            } else {
+                let n_in = if entering { n } else { -n };
+                let eta = (eta_i / eta_t) as f32;
+                if mode == Mode::Radiance {
+                    *beta *= (eta_i / eta_t).powi(2);
+                }
+                Some((eta * d + (eta * cos_i as f32 - cos_t as f32) * n_in).normalize())
+            }
+        }
+        _ => None,
+    }
+}
+
+/// What one image batch needs: the scene, its lights, the camera, and per-surface lookups.
+pub struct ImageKernel<'a> {
+    pub scene: &'a Scene,
+    pub emitter: &'a Emitter,
+    pub camera: &'a CameraModel,
+    pub integrator: Integrator,
+    materials: Vec<&'a Material>,
+    /// Per surface: the light it belongs to, and whether it is a dispersive dielectric.
+    surface_light: Vec<Option<usize>>,
+    dispersive: Vec<bool>,
+    /// Most scattering vertices on a path (the particle tracer's max_bounces + 1).
+    max_scatterings: usize,
+}
+
+/// Rays a batch traced.
+#[derive(Default)]
+pub struct ImageCounters {
+    pub rays: u64,
+    pub shadow_rays: u64,
+    pub splats: u64,
+}
+
+impl<'a> ImageKernel<'a> {
+    pub fn new(scene: &'a Scene, emitter: &'a Emitter, camera: &'a CameraModel, integrator: Integrator) -> Self {
+        let range = scene.simulation.wavelength_range_nm;
+        let materials: Vec<&Material> = (0..scene.surfaces.len()).map(|s| scene.material_of(s)).collect();
+        let dispersive = materials
+            .iter()
+            .map(|m| match m {
+                Material::Dielectric { ior, outside_ior, .. } => {
+                    ior.constant_over(range).is_none() || outside_ior.constant_over(range).is_none()
+                }
+                _ => false,
+            })
+            .collect();
+        ImageKernel {
+            scene,
+            emitter,
+            camera,
+            integrator,
+            materials,
+            surface_light: scene.surfaces.iter().map(|s| s.light).collect(),
+            dispersive,
+            max_scatterings: scene.simulation.max_bounces as usize + 1,
+        }
+    }
+
+    fn geo(&self) -> &Geometry {
+        &self.scene.geometry
+    }
+
+    /// Traces samples `first .. first + count` of the run (one batch) with the batch's own
+    /// random stream, compiled for the scene's effect set.
+    pub fn trace_batch(&self, seed: u64, batch: u64, first: u64, count: u64) -> (FilmBatch, ImageCounters) {
+        let fx = &self.scene.effects;
+        match (fx.spectral, fx.refraction) {
+            (true, true) => self.trace::<true, true>(seed, batch, first, count),
+            (true, false) => self.trace::<true, false>(seed, batch, first, count),
+            (false, true) => self.trace::<false, true>(seed, batch, first, count),
+            (false, false) => self.trace::<false, false>(seed, batch, first, count),
+        }
+    }
+
+    fn trace<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        seed: u64,
+        batch: u64,
+        first: u64,
+        count: u64,
+    ) -> (FilmBatch, ImageCounters) {
+        let mut s = Sampler::for_stream(seed, 1, batch);
+        let pixels = self.camera.pixels() as u64;
+        let mut film = FilmBatch { first_sample: first, ..FilmBatch::default() };
+        film.samples.reserve(count as usize);
+        let mut counters = ImageCounters::default();
+        let mut bdpt = bdpt::Scratch::default();
+        for i in 0..count {
+            let pixel = ((first + i) % pixels) as usize;
+            film.photon = i as u32;
+            let xyz = match self.integrator {
+                Integrator::Path => self.path_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, &mut counters),
+                _ => self.bdpt_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, &mut counters, &mut bdpt, &mut film),
+            };
+            // A NaN or infinite sample would poison its pixel for good: count it as black.
+            let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
+            film.samples.push([xyz.x, xyz.y, xyz.z]);
+        }
+        (film, counters)
+    }
+
+    /// Beer–Lambert transmittance exp(−α(λ)t) per lane over a segment inside `medium`.
+    #[inline]
+    fn medium_transmittance<const SPECTRAL: bool>(&self, medium: u32, t: f32, wl: &Wavelengths) -> Option<Lanes> {
+        match self.materials[medium as usize] {
+            Material::Dielectric { absorption_per_m: Some(alpha), .. } => {
+                let a = Lanes::eval::<SPECTRAL>(alpha, wl);
+                Some(Lanes(a.0.map(|a| (-a * t as f64).exp())))
+            }
+            _ => None,
+        }
+    }
+
+    /// True when nothing lies between `p` (on a surface with normal `n`, or a free point when `n`
+    /// is zero) and `q` (likewise `nq`): both ends are offset off their own surfaces.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn visible(&self, p: Vec3A, err_p: Vec3A, n: Vec3A, prim: u32, q: Vec3A, err_q: Vec3A, nq: Vec3A) -> bool {
+        let dir = (q - p).normalize();
+        let from = if n == Vec3A::ZERO { p } else { offset_ray_origin(p, err_p, n, dir) };
+        let to = if nq == Vec3A::ZERO { q } else { offset_ray_origin(q, err_q, nq, -dir) };
+        let seg = to - from;
+        let len = seg.length();
+        if !(len > 0.0) {
+            return false;
+        }
+        self.geo().unoccluded(from, seg / len, len, prim)
+    }
+}

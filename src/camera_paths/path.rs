@@ -1,0 +1,168 @@
+//! Unidirectional path tracing from the camera (Kajiya 1986) with next-event estimation: at each
+//! diffuse vertex one light point is sampled (light by power, point uniform by area) and
+//! connected, and a path that hits an emitter after a diffuse bounce counts its emission too.
+//! The two estimates of the same light are combined by multiple importance sampling with Veach's
+//! power heuristic, w_a = p_a²/(p_a² + p_b²) (Veach 1997, §9.2.4), both pdfs per solid angle.
+//! After the camera or a specular bounce (mirror, glass) only the hit counts: no light sample can
+//! pass a delta BSDF. Russian roulette on the albedo (see `Diffuse`) ends paths.
+
+use glam::Vec3A;
+
+use super::{emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths};
+use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::sampling::Sampler;
+use crate::scene::Material;
+
+/// Power heuristic weight of technique a against b.
+#[inline]
+fn power_heuristic(a: f64, b: f64) -> f64 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+impl ImageKernel<'_> {
+    /// One path-traced sample of `pixel`: its XYZ radiance estimate.
+    pub(super) fn path_sample<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        pixel: usize,
+        s: &mut Sampler,
+        counters: &mut ImageCounters,
+    ) -> Vec3A {
+        let range = self.scene.simulation.wavelength_range_nm;
+        let mut wl = Wavelengths::sample::<SPECTRAL>(self.emitter, range, s.uniform());
+        let geo = self.geo();
+        let mut acc = LaneXyz::default();
+        let mut origin = self.camera.position;
+        let mut dir = self.camera.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
+        let mut skip = NO_PRIM;
+        let mut beta = Lanes::ONE;
+        // Solid-angle pdf of the last diffuse bounce; None after the camera or a specular bounce.
+        let mut bsdf_pdf: Option<f64> = None;
+        let mut medium: Option<u32> = None;
+        let mut scatterings = 0usize;
+        loop {
+            counters.rays += 1;
+            let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
+            let prim = hit.prim as usize;
+            let surface = geo.surface[prim];
+            let material = self.materials[surface as usize];
+            let n = geo.normals[prim];
+            let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
+            if DIELECTRIC {
+                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
+                if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, &wl)) {
+                    beta *= t;
+                }
+            }
+
+            // Emission seen along the ray, MIS-weighted against next-event estimation.
+            if let Some(light) = self.surface_light[surface as usize] {
+                let le = emitted_radiance::<SPECTRAL>(self.emitter, light, n, -dir, &wl);
+                if !le.is_zero() {
+                    let weight = match bsdf_pdf {
+                        None => 1.0,
+                        Some(p_bsdf) => {
+                            // Light sampling's density of the same direction: pick · (1/A) · t²/cosθ_l.
+                            let cos_l = (-dir).dot(n) as f64;
+                            let t = hit.t as f64;
+                            let p_light = self.emitter.pick_pdf(light) * self.emitter.position_pdf(light) * t * t / cos_l;
+                            power_heuristic(p_bsdf, p_light)
+                        }
+                    };
+                    acc.add::<SPECTRAL>(self.emitter, &wl, light, beta * le * weight);
+                }
+            }
+            if scatterings == self.max_scatterings {
+                break;
+            }
+            scatterings += 1;
+
+            let (p, err) = geo.hit_point(&hit);
+            let new_dir = match material {
+                Material::Lambertian { reflectance, transmittance } => {
+                    let bsdf = Diffuse::new::<SPECTRAL>(reflectance, transmittance, &wl);
+                    self.next_event::<SPECTRAL>(&bsdf, p, err, n, hit.prim, -dir, beta, &wl, &mut acc, s, counters);
+                    let Some((wi, pdf, factor)) = bsdf.sample(-dir, n, s) else { break };
+                    beta *= factor;
+                    bsdf_pdf = Some(pdf);
+                    wi
+                }
+                Material::Absorber => break,
+                _ => {
+                    let dispersive = self.dispersive[surface as usize];
+                    let Some(wi) =
+                        scatter_specular::<SPECTRAL>(material, dispersive, &mut wl, dir, n, Mode::Radiance, &mut beta, s)
+                    else {
+                        break;
+                    };
+                    bsdf_pdf = None;
+                    wi
+                }
+            };
+            if is_dielectric {
+                medium = (new_dir.dot(n) < 0.0).then_some(surface);
+            }
+            origin = offset_ray_origin(p, err, n, new_dir);
+            dir = new_dir;
+            skip = hit.prim;
+        }
+        acc.resolve::<SPECTRAL>(&wl)
+    }
+
+    /// Next-event estimation from a diffuse vertex at `p`: one light point, its emission toward
+    /// `p` times f·|cosθ|, over the solid-angle density of having sampled it, MIS-weighted.
+    /// For a point or area light alike the ratio Le·cosθ_l/(d² · pick · pdf_position) reduces to
+    /// Φ_λ · p_dir(ω)/(pick · d²), with Φ_λ the light's power per nm and p_dir its direction pdf.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn next_event<const SPECTRAL: bool>(
+        &self,
+        bsdf: &Diffuse,
+        p: Vec3A,
+        err: Vec3A,
+        n: Vec3A,
+        prim: u32,
+        wo: Vec3A,
+        beta: Lanes,
+        wl: &Wavelengths,
+        acc: &mut LaneXyz,
+        s: &mut Sampler,
+        counters: &mut ImageCounters,
+    ) {
+        let (light, pick) = self.emitter.pick_light(s.uniform());
+        let lp = self.emitter.sample_point(self.geo(), light, [s.uniform(), s.uniform(), s.uniform()]);
+        if self.emitter.is_collimated(light) {
+            return;
+        }
+        let to = lp.point - p;
+        let d2 = to.length_squared() as f64;
+        let wi = to.normalize();
+        let p_dir = self.emitter.direction_pdf(light, lp.axis, -wi) as f64;
+        if !(p_dir > 0.0 && d2 > 0.0) {
+            return;
+        }
+        let f = bsdf.f(wo, wi, n);
+        if f.is_zero() {
+            return;
+        }
+        let cos_x = wi.dot(n).abs() as f64;
+        let weight = if self.emitter.is_point(light) {
+            1.0
+        } else {
+            let cos_l = (-wi).dot(lp.normal) as f64;
+            let p_light = pick * self.emitter.position_pdf(light) * d2 / cos_l;
+            power_heuristic(p_light, bsdf.pdf(wo, wi, n))
+        };
+        counters.shadow_rays += 1;
+        if !self.visible(p, err, n, prim, lp.point, lp.err, lp.normal) {
+            return;
+        }
+        let radiance_term = light_share::<SPECTRAL>(self.emitter, light, wl)
+            * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
+        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term);
+    }
+}
