@@ -278,7 +278,8 @@ impl Emitter {
             (Origin::Point { .. }, Distribution::Isotropic) => uniform_sphere(u1, u2),
             (_, d) => direction(d, axis, u1, u2),
         };
-        let pdf = if l.distribution == Distribution::Collimated { 1.0 } else { self.direction_pdf(light, axis, dir) as f64 };
+        let pdf =
+            if l.distribution == Distribution::Collimated { 1.0 } else { self.direction_pdf(light, axis, dir) as f64 };
         (dir, pdf)
     }
 }

@@ -819,3 +819,19 @@ fn tally_of_an_unknown_surface() {
         &["--tally ceiling: no surface of that name; surfaces: floor, lamp"],
     );
 }
+
+#[test]
+fn unknown_integrator_in_scene() {
+    let toml = format!("[simulation]\nintegrator = \"photon_mapping\"\n\n{BASE}");
+    expect_bad(
+        "integrator-key",
+        &toml,
+        &[],
+        &[&at(2, "simulation.integrator"), "unknown integrator \"photon_mapping\"", "\"bdpt\""],
+    );
+}
+
+#[test]
+fn unknown_integrator_flag() {
+    expect_bad_args("integrator-flag", &["--integrator", "mlt"], &["invalid value 'mlt'", "--integrator"]);
+}

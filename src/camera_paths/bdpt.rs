@@ -169,12 +169,20 @@ impl ImageKernel<'_> {
         // β₀ = Φ_λ/pick: power per nm. With the emission factor p(ω)/|cosθ| of `vertex_f`, the
         // direction sampled by p(ω) leaves β unchanged.
         let beta = light_share::<SPECTRAL>(e, light, wl) * (e.power_w(light) / pick);
-        let mut y0 =
-            Vertex::endpoint(Kind::Light(light), lp.point, lp.err, lp.normal, lp.prim, beta, pick * e.position_pdf(light));
+        let mut y0 = Vertex::endpoint(
+            Kind::Light(light),
+            lp.point,
+            lp.err,
+            lp.normal,
+            lp.prim,
+            beta,
+            pick * e.position_pdf(light),
+        );
         y0.axis = lp.axis;
         y0.delta = e.is_collimated(light);
         path.push(y0);
-        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
+        let origin =
+            if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
             Mode::Importance,
             path,
@@ -406,7 +414,11 @@ impl ImageKernel<'_> {
             }
             counters.shadow_rays += 1;
             let cam = self.camera.position;
-            self.visible(qs.p, qs.err, qs.n, qs.prim, cam, Vec3A::ZERO, Vec3A::ZERO).then_some((c, light, Some(proj.pixel)))
+            self.visible(qs.p, qs.err, qs.n, qs.prim, cam, Vec3A::ZERO, Vec3A::ZERO).then_some((
+                c,
+                light,
+                Some(proj.pixel),
+            ))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {

@@ -8,7 +8,10 @@
 
 use glam::Vec3A;
 
-use super::{emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths};
+use super::{
+    emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode,
+    Wavelengths,
+};
 use crate::geometry::{offset_ray_origin, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
@@ -69,7 +72,8 @@ impl ImageKernel<'_> {
                             // Light sampling's density of the same direction: pick · (1/A) · t²/cosθ_l.
                             let cos_l = (-dir).dot(n) as f64;
                             let t = hit.t as f64;
-                            let p_light = self.emitter.pick_pdf(light) * self.emitter.position_pdf(light) * t * t / cos_l;
+                            let p_light =
+                                self.emitter.pick_pdf(light) * self.emitter.position_pdf(light) * t * t / cos_l;
                             power_heuristic(p_bsdf, p_light)
                         }
                     };
@@ -94,9 +98,16 @@ impl ImageKernel<'_> {
                 Material::Absorber => break,
                 _ => {
                     let dispersive = self.dispersive[surface as usize];
-                    let Some(wi) =
-                        scatter_specular::<SPECTRAL>(material, dispersive, &mut wl, dir, n, Mode::Radiance, &mut beta, s)
-                    else {
+                    let Some(wi) = scatter_specular::<SPECTRAL>(
+                        material,
+                        dispersive,
+                        &mut wl,
+                        dir,
+                        n,
+                        Mode::Radiance,
+                        &mut beta,
+                        s,
+                    ) else {
                         break;
                     };
                     bsdf_pdf = None;
