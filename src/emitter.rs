@@ -135,36 +135,21 @@ impl Emitter {
         } else {
             (f64::NAN, l.grey_xyz)
         };
-        let (u1, u2) = (u[5] as f32, u[6] as f32);
-        match &l.origin {
-            Origin::Area { prims, pick } => {
-                let prim = prims[pick.sample(u[2])];
-                let b = uniform_triangle(u[3] as f32, u[4] as f32);
-                let hit = crate::geometry::Hit { t: 0.0, prim, b };
-                let (point, err) = geo.hit_point(&hit);
-                let normal = geo.normals[prim as usize];
-                let dir = direction(l.distribution, normal, u1, u2);
-                let origin = offset_ray_origin(point, err, normal, dir);
-                Birth { light, point, origin, dir, normal, prim, lambda_nm, xyz, point_err: err, axis: normal }
-            }
-            Origin::Point { position, axis } => {
-                let dir = match l.distribution {
-                    Distribution::Isotropic => uniform_sphere(u1, u2),
-                    other => direction(other, *axis, u1, u2),
-                };
-                Birth {
-                    light,
-                    point: *position,
-                    origin: *position,
-                    dir,
-                    normal: Vec3A::ZERO,
-                    prim: NO_PRIM,
-                    lambda_nm,
-                    xyz,
-                    point_err: Vec3A::ZERO,
-                    axis: *axis,
-                }
-            }
+        let lp = self.sample_point(geo, light, [u[2], u[3], u[4]]);
+        let dir = self.direction_of(light, lp.axis, u[5] as f32, u[6] as f32);
+        let origin =
+            if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
+        Birth {
+            light,
+            point: lp.point,
+            origin,
+            dir,
+            normal: lp.normal,
+            prim: lp.prim,
+            lambda_nm,
+            xyz,
+            point_err: lp.err,
+            axis: lp.axis,
         }
     }
 
@@ -269,17 +254,22 @@ impl Emitter {
         }
     }
 
-    /// An emission direction about `axis` from the light's distribution, and its solid-angle pdf
-    /// (1 as a placeholder for a collimated light's delta).
+    /// An emission direction about `axis` from the light's distribution (over the whole sphere
+    /// for an isotropic point light).
     #[inline]
-    pub fn sample_direction(&self, light: usize, axis: Vec3A, u1: f32, u2: f32) -> (Vec3A, f64) {
+    fn direction_of(&self, light: usize, axis: Vec3A, u1: f32, u2: f32) -> Vec3A {
         let l = &self.lights[light];
-        let dir = match (&l.origin, l.distribution) {
+        match (&l.origin, l.distribution) {
             (Origin::Point { .. }, Distribution::Isotropic) => uniform_sphere(u1, u2),
             (_, d) => direction(d, axis, u1, u2),
-        };
-        let pdf =
-            if l.distribution == Distribution::Collimated { 1.0 } else { self.direction_pdf(light, axis, dir) as f64 };
+        }
+    }
+
+    /// `direction_of` and its solid-angle pdf (1 as a placeholder for a collimated light's delta).
+    #[inline]
+    pub fn sample_direction(&self, light: usize, axis: Vec3A, u1: f32, u2: f32) -> (Vec3A, f64) {
+        let dir = self.direction_of(light, axis, u1, u2);
+        let pdf = if self.is_collimated(light) { 1.0 } else { self.direction_pdf(light, axis, dir) as f64 };
         (dir, pdf)
     }
 }

@@ -92,14 +92,8 @@ impl Kernel<'_> {
             tallies.counters.splats = f.splats.len() as u64;
         }
         if let Some(image) = self.image {
-            // The same batch index and size for the camera samples: sample k of the run is the
-            // k-th photon's counterpart, so stopping at a batch boundary stops both together.
-            let first = batch * crate::run::BATCH_PHOTONS;
-            let (f, c) = image.trace_batch(self.scene.simulation.seed, batch, first, count);
-            tallies.counters.rays += c.rays;
-            tallies.counters.shadow_rays += c.shadow_rays;
-            tallies.counters.splats += c.splats;
-            film = Some(f);
+            // The camera samples share the batch's indices, so a stop at a batch boundary stops both.
+            film = Some(image.trace_batch(batch, count, &mut tallies.counters));
         }
         tallies.counters.trace_seconds = start.elapsed().as_secs_f64();
         (tallies, film)

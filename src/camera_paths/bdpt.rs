@@ -18,13 +18,13 @@
 use glam::Vec3A;
 
 use super::{
-    emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode,
-    Wavelengths,
+    emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
 use crate::film::FilmBatch;
 use crate::geometry::{offset_ray_origin, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
+use crate::tally::Counters;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Kind {
@@ -111,7 +111,7 @@ impl ImageKernel<'_> {
         &self,
         pixel: usize,
         s: &mut Sampler,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
         scratch: &mut Scratch,
         film: &mut FilmBatch,
     ) -> Vec3A {
@@ -159,7 +159,7 @@ impl ImageKernel<'_> {
         wl: &mut Wavelengths,
         s: &mut Sampler,
         path: &mut Vec<Vertex>,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) -> usize {
         path.clear();
         let e = self.emitter;
@@ -205,7 +205,7 @@ impl ImageKernel<'_> {
         wl: &mut Wavelengths,
         s: &mut Sampler,
         path: &mut Vec<Vertex>,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) {
         path.clear();
         let cam = self.camera;
@@ -244,24 +244,15 @@ impl ImageKernel<'_> {
         max_len: usize,
         wl: &mut Wavelengths,
         s: &mut Sampler,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) {
         let geo = self.geo();
         let mut medium: Option<u32> = None;
         while path.len() < max_len {
             counters.rays += 1;
             let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
-            let prim = hit.prim as usize;
-            let surface = geo.surface[prim];
-            let material = self.materials[surface as usize];
-            let n = geo.normals[prim];
-            let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
-            if DIELECTRIC {
-                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
-                if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
-                    beta *= t;
-                }
-            }
+            let Arrival { surface, material, n, is_dielectric } =
+                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, dir, medium, wl, &mut beta);
             let (p, err) = geo.hit_point(&hit);
             let index = path.len();
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
@@ -389,7 +380,7 @@ impl ImageKernel<'_> {
         t: usize,
         light: usize,
         wl: &Wavelengths,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) -> Option<(Lanes, usize, Option<usize>)> {
         if s == 0 {
             let pt = &cv[t - 1];

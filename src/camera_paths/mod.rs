@@ -30,6 +30,7 @@ use crate::material::{fresnel_dielectric, reflect};
 use crate::sampling::{cosine_hemisphere, Sampler};
 use crate::scene::{Material, Scene};
 use crate::spectrum::Spectrum;
+use crate::tally::Counters;
 
 /// Which estimator makes the image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
@@ -54,12 +55,7 @@ impl Integrator {
     }
 
     pub fn parse(s: &str) -> Option<Integrator> {
-        match s {
-            "light" => Some(Integrator::Light),
-            "path" => Some(Integrator::Path),
-            "bdpt" => Some(Integrator::Bdpt),
-            _ => None,
-        }
+        <Integrator as clap::ValueEnum>::from_str(s, false).ok()
     }
 }
 
@@ -344,12 +340,12 @@ pub struct ImageKernel<'a> {
     max_scatterings: usize,
 }
 
-/// Rays a batch traced.
-#[derive(Default)]
-pub struct ImageCounters {
-    pub rays: u64,
-    pub shadow_rays: u64,
-    pub splats: u64,
+/// A surface a camera or light subpath arrived at.
+struct Arrival<'m> {
+    surface: u32,
+    material: &'m Material,
+    n: Vec3A,
+    is_dielectric: bool,
 }
 
 impl<'a> ImageKernel<'a> {
@@ -381,43 +377,71 @@ impl<'a> ImageKernel<'a> {
         &self.scene.geometry
     }
 
-    /// Traces samples `first .. first + count` of the run (one batch) with the batch's own
-    /// random stream, compiled for the scene's effect set.
-    pub fn trace_batch(&self, seed: u64, batch: u64, first: u64, count: u64) -> (FilmBatch, ImageCounters) {
+    /// Traces the camera samples of transport batch `batch` (`count` of them, the same indices
+    /// as its photons) with the batch's own random stream, compiled for the scene's effect set.
+    /// Rays, visibility rays and splats are added to `counters`.
+    pub fn trace_batch(&self, batch: u64, count: u64, counters: &mut Counters) -> FilmBatch {
         let fx = &self.scene.effects;
         match (fx.spectral, fx.refraction) {
-            (true, true) => self.trace::<true, true>(seed, batch, first, count),
-            (true, false) => self.trace::<true, false>(seed, batch, first, count),
-            (false, true) => self.trace::<false, true>(seed, batch, first, count),
-            (false, false) => self.trace::<false, false>(seed, batch, first, count),
+            (true, true) => self.trace::<true, true>(batch, count, counters),
+            (true, false) => self.trace::<true, false>(batch, count, counters),
+            (false, true) => self.trace::<false, true>(batch, count, counters),
+            (false, false) => self.trace::<false, false>(batch, count, counters),
         }
     }
 
     fn trace<const SPECTRAL: bool, const DIELECTRIC: bool>(
         &self,
-        seed: u64,
         batch: u64,
-        first: u64,
         count: u64,
-    ) -> (FilmBatch, ImageCounters) {
-        let mut s = Sampler::for_stream(seed, 1, batch);
+        counters: &mut Counters,
+    ) -> FilmBatch {
+        let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
+        let first = batch * crate::run::BATCH_PHOTONS;
         let pixels = self.camera.pixels() as u64;
         let mut film = FilmBatch { first_sample: first, ..FilmBatch::default() };
         film.samples.reserve(count as usize);
-        let mut counters = ImageCounters::default();
         let mut bdpt = bdpt::Scratch::default();
         for i in 0..count {
             let pixel = ((first + i) % pixels) as usize;
             film.photon = i as u32;
             let xyz = match self.integrator {
-                Integrator::Path => self.path_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, &mut counters),
-                _ => self.bdpt_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, &mut counters, &mut bdpt, &mut film),
+                Integrator::Path => self.path_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, counters),
+                _ => self.bdpt_sample::<SPECTRAL, DIELECTRIC>(pixel, &mut s, counters, &mut bdpt, &mut film),
             };
             // A NaN or infinite sample would poison its pixel for good: count it as black.
             let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
             film.samples.push([xyz.x, xyz.y, xyz.z]);
         }
-        (film, counters)
+        film
+    }
+
+    /// The surface `hit` lies on, seen by a ray travelling along `dir`. Crossing an absorbing
+    /// medium, `beta` keeps exp(−α(λ)t) per lane (Beer–Lambert). The medium is the dielectric
+    /// the subpath last refracted into, or, for one that starts inside, the one it reaches from
+    /// inside (as in the particle tracer).
+    #[inline]
+    fn arrive<const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &self,
+        hit: &crate::geometry::Hit,
+        dir: Vec3A,
+        medium: Option<u32>,
+        wl: &Wavelengths,
+        beta: &mut Lanes,
+    ) -> Arrival<'_> {
+        let geo = self.geo();
+        let prim = hit.prim as usize;
+        let surface = geo.surface[prim];
+        let material = self.materials[surface as usize];
+        let n = geo.normals[prim];
+        let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
+        if DIELECTRIC {
+            let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
+            if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
+                *beta *= t;
+            }
+        }
+        Arrival { surface, material, n, is_dielectric }
     }
 
     /// Beer–Lambert transmittance exp(−α(λ)t) per lane over a segment inside `medium`.

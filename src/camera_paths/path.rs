@@ -9,12 +9,12 @@
 use glam::Vec3A;
 
 use super::{
-    emitted_radiance, light_share, scatter_specular, Diffuse, ImageCounters, ImageKernel, LaneXyz, Lanes, Mode,
-    Wavelengths,
+    emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
 use crate::geometry::{offset_ray_origin, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
+use crate::tally::Counters;
 
 /// Power heuristic weight of technique a against b.
 #[inline]
@@ -33,7 +33,7 @@ impl ImageKernel<'_> {
         &self,
         pixel: usize,
         s: &mut Sampler,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) -> Vec3A {
         let range = self.scene.simulation.wavelength_range_nm;
         let mut wl = Wavelengths::sample::<SPECTRAL>(self.emitter, range, s.uniform());
@@ -50,17 +50,8 @@ impl ImageKernel<'_> {
         loop {
             counters.rays += 1;
             let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
-            let prim = hit.prim as usize;
-            let surface = geo.surface[prim];
-            let material = self.materials[surface as usize];
-            let n = geo.normals[prim];
-            let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
-            if DIELECTRIC {
-                let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
-                if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, &wl)) {
-                    beta *= t;
-                }
-            }
+            let Arrival { surface, material, n, is_dielectric } =
+                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, dir, medium, &wl, &mut beta);
 
             // Emission seen along the ray, MIS-weighted against next-event estimation.
             if let Some(light) = self.surface_light[surface as usize] {
@@ -142,7 +133,7 @@ impl ImageKernel<'_> {
         wl: &Wavelengths,
         acc: &mut LaneXyz,
         s: &mut Sampler,
-        counters: &mut ImageCounters,
+        counters: &mut Counters,
     ) {
         let (light, pick) = self.emitter.pick_light(s.uniform());
         let lp = self.emitter.sample_point(self.geo(), light, [s.uniform(), s.uniform(), s.uniform()]);

@@ -497,7 +497,7 @@ impl<'s> Loader<'s> {
             t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm", "integrator"])?;
             if let Some(i) = t.with("integrator", |n| {
                 let name = n.str()?;
-                crate::camera_paths::Integrator::parse(&name)
+                crate::camera_paths::Integrator::parse(name)
                     .ok_or_else(|| n.err(format!("unknown integrator \"{name}\"; use \"light\", \"path\" or \"bdpt\"")))
             })? {
                 sim.integrator = i;
