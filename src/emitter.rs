@@ -60,6 +60,12 @@ pub struct Birth {
     pub axis: Vec3A,
 }
 
+impl LightPoint {
+    pub fn end(&self) -> crate::geometry::RayEnd {
+        crate::geometry::RayEnd { p: self.point, err: self.err, n: self.normal, prim: self.prim }
+    }
+}
+
 /// The uniform numbers one emission consumes: light, wavelength, triangle, two barycentric, two
 /// direction. Drawn plainly or stratified across a batch (see `transport`).
 pub const EMIT_DIMS: usize = 7;

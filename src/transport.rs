@@ -7,7 +7,7 @@ use glam::Vec3A;
 
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
-use crate::geometry::{offset_ray_origin, Geometry};
+use crate::geometry::{offset_ray_origin, Geometry, RayEnd};
 use crate::material::{albedo, lobe_factor, sample_scatter};
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
@@ -440,10 +440,8 @@ fn splat(
     if v == Vec3A::ZERO || !v.is_finite() {
         return;
     }
-    let origin = if n == Vec3A::ZERO { p } else { offset_ray_origin(p, err, n, proj.to_camera) };
-    let distance = (cam.position - origin).length();
     film.shadow_rays += 1;
-    if geo.unoccluded(origin, proj.to_camera, distance, prim) {
+    if geo.visible(RayEnd { p, err, n, prim }, RayEnd::free(cam.position)) {
         film.add(proj.pixel, v * proj.importance);
     }
 }

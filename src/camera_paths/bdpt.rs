@@ -21,7 +21,7 @@ use super::{
     emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
 use crate::film::FilmBatch;
-use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::geometry::{offset_ray_origin, RayEnd, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
 use crate::tally::Counters;
@@ -55,6 +55,10 @@ struct Vertex {
 }
 
 impl Vertex {
+    fn end(&self) -> RayEnd {
+        RayEnd { p: self.p, err: self.err, n: self.n, prim: self.prim }
+    }
+
     fn endpoint(kind: Kind, p: Vec3A, err: Vec3A, n: Vec3A, prim: u32, beta: Lanes, pdf_fwd: f64) -> Self {
         Vertex {
             kind,
@@ -405,11 +409,7 @@ impl ImageKernel<'_> {
             }
             counters.shadow_rays += 1;
             let cam = self.camera.position;
-            self.visible(qs.p, qs.err, qs.n, qs.prim, cam, Vec3A::ZERO, Vec3A::ZERO).then_some((
-                c,
-                light,
-                Some(proj.pixel),
-            ))
+            self.geo().visible(qs.end(), RayEnd::free(cam)).then_some((c, light, Some(proj.pixel)))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {
@@ -428,7 +428,7 @@ impl ImageKernel<'_> {
                 return None;
             }
             counters.shadow_rays += 1;
-            self.visible(qs.p, qs.err, qs.n, qs.prim, pt.p, pt.err, pt.n).then_some((c, light, None))
+            self.geo().visible(qs.end(), pt.end()).then_some((c, light, None))
         }
     }
 

@@ -25,7 +25,7 @@ use std::ops::{Mul, MulAssign};
 
 use crate::emitter::Emitter;
 use crate::film::{CameraModel, FilmBatch};
-use crate::geometry::{offset_ray_origin, Geometry};
+use crate::geometry::Geometry;
 use crate::material::{fresnel_dielectric, reflect};
 use crate::sampling::{cosine_hemisphere, Sampler};
 use crate::scene::{Material, Scene};
@@ -454,21 +454,5 @@ impl<'a> ImageKernel<'a> {
             }
             _ => None,
         }
-    }
-
-    /// True when nothing lies between `p` (on a surface with normal `n`, or a free point when `n`
-    /// is zero) and `q` (likewise `nq`): both ends are offset off their own surfaces.
-    #[allow(clippy::too_many_arguments)]
-    #[inline]
-    fn visible(&self, p: Vec3A, err_p: Vec3A, n: Vec3A, prim: u32, q: Vec3A, err_q: Vec3A, nq: Vec3A) -> bool {
-        let dir = (q - p).normalize();
-        let from = if n == Vec3A::ZERO { p } else { offset_ray_origin(p, err_p, n, dir) };
-        let to = if nq == Vec3A::ZERO { q } else { offset_ray_origin(q, err_q, nq, -dir) };
-        let seg = to - from;
-        let len = seg.length();
-        if !(len > 0.0) {
-            return false;
-        }
-        self.geo().unoccluded(from, seg / len, len, prim)
     }
 }

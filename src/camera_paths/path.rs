@@ -11,7 +11,7 @@ use glam::Vec3A;
 use super::{
     emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
-use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::geometry::{offset_ray_origin, RayEnd, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
 use crate::tally::Counters;
@@ -160,7 +160,7 @@ impl ImageKernel<'_> {
             power_heuristic(p_light, bsdf.pdf(wo, wi, n))
         };
         counters.shadow_rays += 1;
-        if !self.visible(p, err, n, prim, lp.point, lp.err, lp.normal) {
+        if !self.geo().visible(RayEnd { p, err, n, prim }, lp.end()) {
             return;
         }
         let radiance_term = light_share::<SPECTRAL>(self.emitter, light, wl)
