@@ -14,6 +14,7 @@ pub mod film;
 pub mod geometry;
 pub mod material;
 pub mod output;
+pub mod photometry;
 pub mod run;
 pub mod sampling;
 pub mod scene;

@@ -20,12 +20,50 @@ pub struct SurfaceRow {
     pub absorbed_w_stderr: f64,
     /// Relative standard error of incident_w (0 when nothing arrived).
     pub rel_error: f64,
+    /// The same in lumens: 683 lm/W × ∫Φ(λ)ȳ(λ)dλ (see `photometry`).
+    pub incident_lm: f64,
+    pub incident_lm_stderr: f64,
+    pub absorbed_lm: f64,
+    pub absorbed_lm_stderr: f64,
+    /// Mean incident flux per unit area over the surface: W/m² and lm/m² = lx.
+    pub irradiance_w_m2: f64,
+    pub irradiance_w_m2_stderr: f64,
+    pub illuminance_lx: f64,
+    pub illuminance_lx_stderr: f64,
+}
+
+/// The flux.csv columns, in order.
+const CSV_COLUMNS: &str = "name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error,\
+incident_lm,incident_lm_stderr,absorbed_lm,absorbed_lm_stderr,irradiance_w_m2,irradiance_w_m2_stderr,\
+illuminance_lx,illuminance_lx_stderr";
+
+impl SurfaceRow {
+    fn csv_values(&self) -> [f64; 14] {
+        [
+            self.area_m2,
+            self.incident_w,
+            self.incident_w_stderr,
+            self.absorbed_w,
+            self.absorbed_w_stderr,
+            self.rel_error,
+            self.incident_lm,
+            self.incident_lm_stderr,
+            self.absorbed_lm,
+            self.absorbed_lm_stderr,
+            self.irradiance_w_m2,
+            self.irradiance_w_m2_stderr,
+            self.illuminance_lx,
+            self.illuminance_lx_stderr,
+        ]
+    }
 }
 
 #[derive(Serialize, Clone, Debug)]
 pub struct Flux {
     pub photons: u64,
     pub emitted_w: f64,
+    /// Σ over lights of power × luminous efficacy of its spectrum.
+    pub emitted_lm: f64,
     pub surfaces: Vec<SurfaceRow>,
     pub ledger: Ledger,
 }
@@ -80,7 +118,10 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
         .map(|(i, s)| {
             let (incident_w, incident_w_stderr) = r.incident(i);
             let (absorbed_w, absorbed_w_stderr) = r.absorbed(i);
+            let (incident_lm, incident_lm_stderr) = r.incident_lm(i);
+            let (absorbed_lm, absorbed_lm_stderr) = r.absorbed_lm(i);
             let rel_error = if incident_w > 0.0 { incident_w_stderr / incident_w } else { 0.0 };
+            let per_m2 = if s.area_m2 > 0.0 { 1.0 / s.area_m2 } else { 0.0 };
             SurfaceRow {
                 name: s.name.clone(),
                 area_m2: s.area_m2,
@@ -89,10 +130,19 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
                 absorbed_w,
                 absorbed_w_stderr,
                 rel_error,
+                incident_lm,
+                incident_lm_stderr,
+                absorbed_lm,
+                absorbed_lm_stderr,
+                irradiance_w_m2: incident_w * per_m2,
+                irradiance_w_m2_stderr: incident_w_stderr * per_m2,
+                illuminance_lx: incident_lm * per_m2,
+                illuminance_lx_stderr: incident_lm_stderr * per_m2,
             }
         })
         .collect();
-    Flux { photons: t.photons, emitted_w: r.emitted_w, surfaces, ledger: t.ledger(r.emitted_w) }
+    let emitted_lm = scene.lights.iter().map(|l| l.power_w * l.lm_per_w).sum();
+    Flux { photons: t.photons, emitted_w: r.emitted_w, emitted_lm, surfaces, ledger: t.ledger(r.emitted_w) }
 }
 
 pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
@@ -140,17 +190,18 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
 }
 
 pub fn flux_csv(f: &Flux) -> String {
-    let mut s = String::from("name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error\n");
+    let mut s = format!("{CSV_COLUMNS}\n");
     for r in &f.surfaces {
         let name = if r.name.contains([',', '"', '\n']) {
             format!("\"{}\"", r.name.replace('"', "\"\""))
         } else {
             r.name.clone()
         };
-        s.push_str(&format!(
-            "{name},{},{},{},{},{},{}\n",
-            r.area_m2, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error
-        ));
+        s.push_str(&name);
+        for v in r.csv_values() {
+            s.push_str(&format!(",{v}"));
+        }
+        s.push('\n');
     }
     s
 }
@@ -183,13 +234,13 @@ pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<Pat
 pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
     let width = f.surfaces.iter().map(|r| r.name.len()).max().unwrap_or(4).max(7);
     let mut s = format!(
-        "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}\n",
-        "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err"
+        "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}  {:>12}\n",
+        "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err", "mean lx"
     );
     for r in &f.surfaces {
         s.push_str(&format!(
-            "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8.2e}\n",
-            r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error
+            "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8.2e}  {:>12.5e}\n",
+            r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error, r.illuminance_lx
         ));
     }
     let l = &f.ledger;

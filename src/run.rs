@@ -345,4 +345,14 @@ impl RunResult {
     pub fn absorbed(&self, i: usize) -> (f64, f64) {
         self.tallies.absorbed_estimate(i, self.emitted_w, self.transport.error_model())
     }
+
+    /// (incident lm, standard error) of surface `i`.
+    pub fn incident_lm(&self, i: usize) -> (f64, f64) {
+        self.tallies.estimate(&self.tallies.incident_lm, i, self.emitted_w, self.transport.error_model())
+    }
+
+    /// (absorbed lm, standard error) of surface `i`.
+    pub fn absorbed_lm(&self, i: usize) -> (f64, f64) {
+        self.tallies.estimate(&self.tallies.absorbed_lm, i, self.emitted_w, self.transport.error_model())
+    }
 }

@@ -59,12 +59,57 @@ impl HistoryScores {
     /// Ends the history: each touched surface's score goes into `into`, and the buffer is cleared.
     #[inline]
     pub fn flush(&mut self, into: &mut [Moments]) {
+        self.flush_scaled(into, None);
+    }
+
+    /// As `flush`, also adding score × `lm_per_w` to `luminous` (a history's luminous efficacy is
+    /// fixed: one wavelength, or one light's spectrum in grey transport).
+    #[inline]
+    pub fn flush_scaled(&mut self, into: &mut [Moments], mut luminous: Option<(&mut [Moments], f64)>) {
         for &s in &self.touched {
             let v = &mut self.value[s as usize];
             into[s as usize].add_history(*v);
+            if let Some((lum, k)) = luminous.as_mut() {
+                lum[s as usize].add_history(*v * *k);
+            }
             *v = 0.0;
         }
         self.touched.clear();
+    }
+}
+
+/// One quantity tallied per surface: per-history moments, and Σ_b S_b²/n_b over merged batches
+/// (S_b a batch's sum, n_b its photons) for the between-batch error that stratified emission
+/// needs (its histories are not independent).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    pub moments: Vec<Moments>,
+    pub batch_sq: Vec<f64>,
+}
+
+impl Channel {
+    pub fn new(surfaces: usize) -> Self {
+        Channel { moments: vec![Moments::default(); surfaces], batch_sq: vec![0.0; surfaces] }
+    }
+
+    pub fn len(&self) -> usize {
+        self.moments.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.moments.is_empty()
+    }
+
+    fn merge(&mut self, b: &Channel, batch_photons: u64) {
+        if batch_photons > 0 {
+            let n = batch_photons as f64;
+            for (acc, m) in self.batch_sq.iter_mut().zip(&b.moments) {
+                *acc += m.sum * m.sum / n;
+            }
+        }
+        for (a, x) in self.moments.iter_mut().zip(&b.moments) {
+            a.merge(x);
+        }
     }
 }
 
@@ -72,8 +117,12 @@ impl HistoryScores {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tallies {
     pub photons: u64,
-    pub incident: Vec<Moments>,
-    pub absorbed: Vec<Moments>,
+    /// Weight arriving at and absorbed by each surface; the same times the history's luminous
+    /// efficacy 683·ȳ(λ) lm/W (for photometric units).
+    pub incident: Channel,
+    pub absorbed: Channel,
+    pub incident_lm: Channel,
+    pub absorbed_lm: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -81,10 +130,6 @@ pub struct Tallies {
     pub scatterings: u64,
     pub scatterings_sq: u64,
     pub counters: Counters,
-    /// Σ_b S_b²/n_b over merged batches (S_b a batch's sum, n_b its photons), per surface, for the
-    /// between-batch error that stratified emission needs (its histories are not independent).
-    pub batch_sq_incident: Vec<f64>,
-    pub batch_sq_absorbed: Vec<f64>,
     pub batches: u64,
 }
 
@@ -126,38 +171,33 @@ impl Tallies {
     pub fn new(surfaces: usize) -> Self {
         Tallies {
             photons: 0,
-            incident: vec![Moments::default(); surfaces],
-            absorbed: vec![Moments::default(); surfaces],
+            incident: Channel::new(surfaces),
+            absorbed: Channel::new(surfaces),
+            incident_lm: Channel::new(surfaces),
+            absorbed_lm: Channel::new(surfaces),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
             scatterings_sq: 0,
             counters: Counters::default(),
-            batch_sq_incident: vec![0.0; surfaces],
-            batch_sq_absorbed: vec![0.0; surfaces],
             batches: 0,
         }
     }
 
     /// Adds a batch. Called in batch-index order, so the f64 sums are the same for any thread count.
     pub fn merge(&mut self, b: &Tallies) {
+        for (a, x) in [
+            (&mut self.incident, &b.incident),
+            (&mut self.absorbed, &b.absorbed),
+            (&mut self.incident_lm, &b.incident_lm),
+            (&mut self.absorbed_lm, &b.absorbed_lm),
+        ] {
+            a.merge(x, b.photons);
+        }
         if b.photons > 0 {
-            let n = b.photons as f64;
-            for (acc, m) in self.batch_sq_incident.iter_mut().zip(&b.incident) {
-                *acc += m.sum * m.sum / n;
-            }
-            for (acc, m) in self.batch_sq_absorbed.iter_mut().zip(&b.absorbed) {
-                *acc += m.sum * m.sum / n;
-            }
             self.batches += 1;
         }
         self.photons += b.photons;
-        for (a, x) in self.incident.iter_mut().zip(&b.incident) {
-            a.merge(x);
-        }
-        for (a, x) in self.absorbed.iter_mut().zip(&b.absorbed) {
-            a.merge(x);
-        }
         self.escaped += b.escaped;
         self.truncated += b.truncated;
         self.scatterings += b.scatterings;
@@ -177,7 +217,8 @@ impl Tallies {
     /// (mean, standard error) of a per-history score times `scale`, under `model`. With fewer than
     /// two batches the batch model has no spread to use and falls back to histories (conservative
     /// for stratified sampling).
-    fn estimate(&self, m: &Moments, batch_sq: f64, scale: f64, model: ErrorModel) -> (f64, f64) {
+    pub fn estimate(&self, c: &Channel, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
+        let m = &c.moments[surface];
         let (mean, se) = m.estimate(self.photons, scale);
         if model == ErrorModel::Histories || self.batches < 2 {
             return (mean, se);
@@ -185,16 +226,16 @@ impl Tallies {
         // Per-photon variance from batch means m_b = S_b/n_b: Σ n_b (m_b − m)²/(K − 1).
         let (n, k) = (self.photons as f64, self.batches as f64);
         let m_hat = m.sum / n;
-        let var = ((batch_sq - n * m_hat * m_hat) / (k - 1.0)).max(0.0) / n;
+        let var = ((c.batch_sq[surface] - n * m_hat * m_hat) / (k - 1.0)).max(0.0) / n;
         (mean, var.sqrt() * scale)
     }
 
     pub fn incident_estimate(&self, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
-        self.estimate(&self.incident[surface], self.batch_sq_incident[surface], scale, model)
+        self.estimate(&self.incident, surface, scale, model)
     }
 
     pub fn absorbed_estimate(&self, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
-        self.estimate(&self.absorbed[surface], self.batch_sq_absorbed[surface], scale, model)
+        self.estimate(&self.absorbed, surface, scale, model)
     }
 
     /// Mean scatterings per photon and its standard error.
@@ -206,7 +247,7 @@ impl Tallies {
         let w = self.watts_per_weight(emitted_w);
         Ledger {
             emitted_w,
-            absorbed_w: self.absorbed.iter().map(|m| m.sum).sum::<f64>() * w,
+            absorbed_w: self.absorbed.moments.iter().map(|m| m.sum).sum::<f64>() * w,
             escaped_w: self.escaped * w,
             truncated_w: self.truncated * w,
         }

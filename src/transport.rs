@@ -9,6 +9,7 @@ use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{offset_ray_origin, Geometry, RayEnd};
 use crate::material::{albedo, lobe_factor, sample_scatter};
+use crate::photometry;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
 use crate::tally::{HistoryScores, Tallies};
@@ -309,8 +310,11 @@ impl Kernel<'_> {
             }
             out.scatterings += scatterings as u64;
             out.scatterings_sq += (scatterings as u64).pow(2);
-            incident.flush(&mut out.incident);
-            absorbed.flush(&mut out.absorbed);
+            // Luminous efficacy of this history: K_m ȳ(λ) at its wavelength, or its light's
+            // spectrum-averaged efficacy in grey transport (see `photometry`).
+            let lm_per_w = if SPECTRAL { photometry::efficacy_at(lambda) } else { scene.lights[birth.light].lm_per_w };
+            incident.flush_scaled(&mut out.incident.moments, Some((&mut out.incident_lm.moments, lm_per_w)));
+            absorbed.flush_scaled(&mut out.absorbed.moments, Some((&mut out.absorbed_lm.moments, lm_per_w)));
         }
         out.photons = count;
         out

@@ -835,3 +835,37 @@ fn unknown_integrator_in_scene() {
 fn unknown_integrator_flag() {
     expect_bad_args("integrator-flag", &["--integrator", "mlt"], &["invalid value 'mlt'", "--integrator"]);
 }
+
+#[test]
+fn watts_and_lumens_together() {
+    let toml = edit(BASE, "power_w = 10", "power_w = 10\npower_lm = 800");
+    expect_bad(
+        "power-w-and-lm",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "power_lm"), "lights[0].power_lm"), "give only one of power_w, power_lm"],
+    );
+}
+
+#[test]
+fn negative_lumens() {
+    let toml = edit(BASE, "power_w = 10", "power_lm = -800");
+    expect_bad(
+        "power-lm-negative",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "power_lm"), "lights[0].power_lm"), "power must be positive, found -800"],
+    );
+}
+
+#[test]
+fn lumens_from_an_invisible_spectrum() {
+    // All its power below 360 nm, where the CIE table has ȳ = 0: lumens cannot set its power.
+    let toml = edit(BASE, "power_w = 10", "power_lm = 800\nspectrum = { file = \"uv.csv\" }");
+    expect_bad(
+        "power-lm-invisible",
+        &format!("[simulation]\nwavelength_range_nm = [300, 800]\n{toml}"),
+        &[("uv.csv", "wavelength_nm,value\n300,1\n350,1\n360,0\n800,0\n")],
+        &["lights[0].power_lm", "no visible power"],
+    );
+}

@@ -12,6 +12,7 @@ use super::shapes::{self, ShapeSpec};
 use super::*;
 use crate::error::{Error, InputError};
 use crate::geometry::Geometry;
+use crate::photometry;
 use crate::spectrum::Spectrum;
 
 const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights", "reference"];
@@ -131,6 +132,7 @@ impl<'s> Loader<'s> {
         }
         enum PowerSpec {
             Watts(f64),
+            Lumens(f64),
             Radiance(Spectrum),
         }
         let mut light_specs: Vec<LightSpec> = Vec::new();
@@ -141,6 +143,7 @@ impl<'s> Loader<'s> {
                     "name",
                     "shape",
                     "power_w",
+                    "power_lm",
                     "radiance",
                     "spectrum",
                     "distribution",
@@ -150,21 +153,28 @@ impl<'s> Loader<'s> {
                 let name = self.name(t)?;
                 let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
                 let material = if t.has("material") { self.material_ref(t, &material_index)? } else { 0 };
-                let power = match (t.has("power_w"), t.has("radiance")) {
-                    (true, true) => return Err(t.err("give either `power_w` or `radiance`, not both")),
-                    (false, false) => {
-                        return Err(
-                            t.err("missing `power_w` (total radiant flux in W) or `radiance` (W m^-2 sr^-1 nm^-1)")
-                        )
+                let given: Vec<&str> =
+                    ["power_w", "power_lm", "radiance"].into_iter().filter(|k| t.has(k)).collect();
+                let power = match given.as_slice() {
+                    [] => {
+                        return Err(t.err(
+                            "missing `power_w` (radiant flux, W), `power_lm` (luminous flux, lm) or `radiance` \
+                             (W m^-2 sr^-1 nm^-1)",
+                        ))
                     }
-                    (true, false) => {
-                        let p = t.req_f64("power_w")?;
-                        if p <= 0.0 {
-                            return Err(t.err_at("power_w", format!("power must be positive, found {p}")));
+                    ["power_w"] | ["power_lm"] => {
+                        let key = given[0];
+                        let p = t.req_f64(key)?;
+                        if !(p > 0.0) {
+                            return Err(t.err_at(key, format!("power must be positive, found {p}")));
                         }
-                        PowerSpec::Watts(p)
+                        if key == "power_w" {
+                            PowerSpec::Watts(p)
+                        } else {
+                            PowerSpec::Lumens(p)
+                        }
                     }
-                    (false, true) => {
+                    ["radiance"] => {
                         let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
                         if s.integral(range) <= 0.0 {
                             return Err(
@@ -173,6 +183,7 @@ impl<'s> Loader<'s> {
                         }
                         PowerSpec::Radiance(s)
                     }
+                    _ => return Err(t.err_at(given[1], format!("give only one of {}", given.join(", ")))),
                 };
                 if matches!(power, PowerSpec::Radiance(_)) && t.has("spectrum") {
                     return Err(t.err_at(
@@ -182,8 +193,14 @@ impl<'s> Loader<'s> {
                 }
                 let spectrum =
                     t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
-                if let (PowerSpec::Watts(_), true) = (&power, spectrum.integral(range) <= 0.0) {
+                if !matches!(power, PowerSpec::Radiance(_)) && spectrum.integral(range) <= 0.0 {
                     return Err(t.err_at("spectrum", "the spectrum is zero over the whole wavelength range"));
+                }
+                if matches!(power, PowerSpec::Lumens(_)) && photometry::efficacy_of(&spectrum, range) <= 0.0 {
+                    return Err(t.err_at(
+                        "power_lm",
+                        "this light's spectrum has no visible power in the wavelength range, so lumens cannot set it",
+                    ));
                 }
                 let is_point = matches!(shape, ShapeSpec::Point { .. });
                 // SPEC: area lights default to lambertian; a point light has no surface to be
@@ -205,9 +222,10 @@ impl<'s> Loader<'s> {
                 }
                 if is_point {
                     if matches!(power, PowerSpec::Radiance(_)) {
-                        return Err(
-                            t.err_at("radiance", "a point light has no area, so it needs `power_w`, not `radiance`")
-                        );
+                        return Err(t.err_at(
+                            "radiance",
+                            "a point light has no area, so it needs `power_w` or `power_lm`, not `radiance`",
+                        ));
                     }
                     if t.has("material") {
                         return Err(t.err_at("material", "a point light is not a surface and takes no material"));
@@ -221,7 +239,7 @@ impl<'s> Loader<'s> {
                 }
                 if let PowerSpec::Radiance(_) = power {
                     if distribution == Distribution::Collimated {
-                        return Err(t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w`"));
+                        return Err(t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w` or `power_lm`"));
                     }
                 }
                 Ok(LightSpec {
@@ -341,6 +359,7 @@ impl<'s> Loader<'s> {
             };
             let (power_w, spectrum) = match spec.power {
                 PowerSpec::Watts(p) => (p, spec.spectrum),
+                PowerSpec::Lumens(lm) => (lm / photometry::efficacy_of(&spec.spectrum, range), spec.spectrum),
                 PowerSpec::Radiance(radiance) => {
                     // Φ = A ∫∫ L(λ) g(θ) cosθ dω dλ with L(θ) = L·g(θ) along the normal:
                     // ∫ g cosθ dω = π (lambertian), 2π (isotropic: g = 1/cosθ), 2π/(n+1) (cosⁿ: g = cosⁿ⁻¹θ).
@@ -354,7 +373,8 @@ impl<'s> Loader<'s> {
                 }
             };
             light_lines.push(spec.shape_line);
-            lights.push(Light { name: spec.name, shape, power_w, spectrum, distribution: spec.distribution });
+            let lm_per_w = photometry::efficacy_of(&spectrum, range);
+            lights.push(Light { name: spec.name, shape, power_w, spectrum, lm_per_w, distribution: spec.distribution });
         }
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 

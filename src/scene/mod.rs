@@ -113,6 +113,8 @@ pub struct Light {
     pub power_w: f64,
     /// Shape of the spectral power over the wavelength range (its scale is irrelevant).
     pub spectrum: Spectrum,
+    /// Luminous efficacy of that spectrum over the wavelength range, lm/W (`photometry`).
+    pub lm_per_w: f64,
     pub distribution: Distribution,
 }
 
