@@ -12,6 +12,7 @@ pub mod emitter;
 pub mod error;
 pub mod film;
 pub mod geometry;
+pub mod maps;
 pub mod material;
 pub mod output;
 pub mod photometry;

@@ -213,6 +213,15 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
             );
         }
     }
+    let maps = photon::maps::estimates(&scene, &result);
+    if !maps.is_empty() {
+        let dir = out_dir.join("maps");
+        std::fs::create_dir_all(&dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", dir.display())))?;
+        for m in &maps {
+            photon::maps::write_exr(&dir, m)?;
+            photon::maps::write_png(&dir, m, &scene.stem())?;
+        }
+    }
     output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {
         print!("{}", output::summary_table(&flux, &info));

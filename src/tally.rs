@@ -123,6 +123,9 @@ pub struct Tallies {
     pub absorbed: Channel,
     pub incident_lm: Channel,
     pub absorbed_lm: Channel,
+    /// Incident weight per texel of the scene's irradiance maps (W and lm, as above).
+    pub texels: Channel,
+    pub texels_lm: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -168,13 +171,15 @@ impl Counters {
 }
 
 impl Tallies {
-    pub fn new(surfaces: usize) -> Self {
+    pub fn new(surfaces: usize, texels: usize) -> Self {
         Tallies {
             photons: 0,
             incident: Channel::new(surfaces),
             absorbed: Channel::new(surfaces),
             incident_lm: Channel::new(surfaces),
             absorbed_lm: Channel::new(surfaces),
+            texels: Channel::new(texels),
+            texels_lm: Channel::new(texels),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
@@ -191,6 +196,8 @@ impl Tallies {
             (&mut self.absorbed, &b.absorbed),
             (&mut self.incident_lm, &b.incident_lm),
             (&mut self.absorbed_lm, &b.absorbed_lm),
+            (&mut self.texels, &b.texels),
+            (&mut self.texels_lm, &b.texels_lm),
         ] {
             a.merge(x, b.photons);
         }

@@ -8,6 +8,7 @@ use glam::Vec3A;
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{offset_ray_origin, Geometry, RayEnd};
+use crate::maps::SurfaceMap;
 use crate::material::{albedo, lobe_factor, sample_scatter};
 use crate::photometry;
 use crate::sampling::Sampler;
@@ -189,9 +190,13 @@ impl Kernel<'_> {
         let materials: Vec<&Material> = (0..n_surfaces).map(|s| scene.material_of(s)).collect();
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
-        let mut out = Tallies::new(n_surfaces);
+        let mut out = Tallies::new(n_surfaces, scene.map_texels());
         let mut incident = HistoryScores::new(n_surfaces);
         let mut absorbed = HistoryScores::new(n_surfaces);
+        // Irradiance maps: one branch per arrival, not taken in scenes without maps.
+        let maps: Vec<Option<&SurfaceMap>> = scene.surfaces.iter().map(|s| s.map.as_ref()).collect();
+        let has_maps = maps.iter().any(|m| m.is_some());
+        let mut texels = HistoryScores::new(if has_maps { scene.map_texels() } else { 0 });
 
         for photon in 0..count as u32 {
             let u: EmitSample = match &strata {
@@ -259,6 +264,11 @@ impl Kernel<'_> {
 
                 incident.add(surface, weight);
                 let (p, err) = geo.hit_point(&hit);
+                if has_maps {
+                    if let Some(map) = maps[surface as usize] {
+                        texels.add(map.texel_of(p) as u32, weight);
+                    }
+                }
                 if let (true, Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
                     (CAMERA, self.camera, film.as_deref_mut(), material)
                 {
@@ -315,6 +325,9 @@ impl Kernel<'_> {
             let lm_per_w = if SPECTRAL { photometry::efficacy_at(lambda) } else { scene.lights[birth.light].lm_per_w };
             incident.flush_scaled(&mut out.incident.moments, Some((&mut out.incident_lm.moments, lm_per_w)));
             absorbed.flush_scaled(&mut out.absorbed.moments, Some((&mut out.absorbed_lm.moments, lm_per_w)));
+            if has_maps {
+                texels.flush_scaled(&mut out.texels.moments, Some((&mut out.texels_lm.moments, lm_per_w)));
+            }
         }
         out.photons = count;
         out

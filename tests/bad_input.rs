@@ -869,3 +869,33 @@ fn lumens_from_an_invisible_spectrum() {
         &["lights[0].power_lm", "no visible power"],
     );
 }
+
+#[test]
+fn map_on_a_sphere() {
+    let toml = format!(
+        "{BASE}\n[[surfaces]]\nname = \"ball\"\nmaterial = \"white\"\nshape = {{ type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.1 }}\nmap = {{ resolution = [8, 8] }}\n"
+    );
+    expect_bad(
+        "map-sphere",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "map ="), "surfaces[1].map"), "needs a surface of type \"quad\" or \"disk\""],
+    );
+}
+
+#[test]
+fn map_of_zero_texels() {
+    let toml = edit(BASE, "[1, 0, 0]] }\n", "[1, 0, 0]] }\nmap = { resolution = [0, 8] }\n");
+    expect_bad(
+        "map-zero",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "map ="), "surfaces[0].map.resolution"), "each between 1 and 1024 texels"],
+    );
+}
+
+#[test]
+fn map_with_an_unknown_key() {
+    let toml = edit(BASE, "[1, 0, 0]] }\n", "[1, 0, 0]] }\nmap = { resolution = [8, 8], colour = \"jet\" }\n");
+    expect_bad("map-key", &toml, &[], &[&at(line_of(&toml, "map ="), "surfaces[0].map.colour")]);
+}

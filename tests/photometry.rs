@@ -3,7 +3,29 @@
 //! 6e-5 per comparison; the photon counts make a 1–2 % bias fail).
 
 mod common;
-use common::{assert_z, run, surface};
+use common::{assert_z, cornell_toml, run, scene, surface};
+
+use std::sync::atomic::AtomicBool;
+
+use photon::maps::{self, MapEstimate};
+use photon::output::{self, Flux};
+use photon::run::{apply_options, simulate, RunOptions};
+
+/// Runs `toml` on 2 threads; returns the flux table and the irradiance maps.
+fn run_maps(toml: &str, photons: u64, seed: u64) -> (Flux, Vec<MapEstimate>) {
+    let mut s = scene(toml);
+    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
+    (output::flux(&s, &r), maps::estimates(&s, &r))
+}
+
+/// Upper and lower 1e-4 tail points of χ² with k degrees of freedom (Wilson–Hilferty:
+/// (χ²/k)^(1/3) is nearly normal with mean 1 − 2/(9k) and variance 2/(9k); z = 3.72).
+fn chi_square_bounds(k: f64) -> (f64, f64) {
+    let (m, s) = (1.0 - 2.0 / (9.0 * k), (2.0 / (9.0 * k)).sqrt());
+    (k * (m - 3.72 * s).powi(3), k * (m + 3.72 * s).powi(3))
+}
 
 /// A square plate of side `a` (m) at distance `h` below an isotropic point source of `lumens`,
 /// with the source's spectrum and the plate's reflectance given as TOML values.
@@ -68,4 +90,73 @@ fn grey_lumens_are_watts_times_the_spectrum_efficacy() {
     let k = f.emitted_lm / f.emitted_w;
     assert!((k - 683.0 * 106.86 / 400.0).abs() < 0.5, "efficacy {k}");
     assert!((p.incident_lm / p.incident_w - k).abs() < 1e-9 * k);
+}
+
+#[test]
+fn illuminance_under_a_point_source_is_intensity_over_height_squared_at_the_map_centre() {
+    // E = I/h² on the axis, I = Φ_v/(4π) for an isotropic source. The centre texel (side s = 0.1 m
+    // at h = 1 m) averages E over its square: exactly I·Ω_texel/s², which is I/h² × (1 − 0.25 %)
+    // (E falls off as cos³θ). With ~8000 photons in that texel its error is ~1.1 %, so both
+    // comparisons at 4σ are decisive and the 0.25 % does not matter to the first.
+    let (lumens, h, n) = (1000.0, 1.0, 11usize);
+    let side = 0.1 * n as f64;
+    let toml = plate_under_bulb(side, h, lumens, "1.0", "0.0")
+        .replace("[[lights]]", &format!("map = {{ resolution = [{n}, {n}] }}\n[[lights]]"));
+    let (_, maps) = run_maps(&toml, 10_000_000, 7);
+    let centre = n / 2 * n + n / 2;
+    let (e, se) = maps[0].illuminance_lx()[centre];
+    let intensity = lumens / (4.0 * std::f64::consts::PI);
+    assert_z("centre illuminance vs I/h²", e, intensity / (h * h), se, 4.0);
+    assert_z("centre illuminance vs I·Ω/s²", e, intensity * square_solid_angle(0.1, h) / 0.01, se, 4.0);
+    assert!(se / e < 0.015, "relative error {}", se / e);
+}
+
+#[test]
+fn a_maps_texels_add_up_to_its_surface_tally() {
+    // The Cornell floor is a trapezoid, so the map's last column is only partly covered; every
+    // arrival still lands in exactly one texel, so the sums agree to rounding (W and lm alike).
+    let toml =
+        cornell_toml().replace("[549.6, 0, 559.2]] }\n", "[549.6, 0, 559.2]] }\nmap = { resolution = [40, 30] }\n");
+    assert!(toml.contains("map = "));
+    let (f, maps) = run_maps(&toml, 300_000, 2);
+    let floor = surface(&f, "floor");
+    let m = &maps[0];
+    assert_eq!(m.surface, "floor");
+    let w: f64 = m.flux_w.iter().map(|x| x.0).sum();
+    let lm: f64 = m.flux_lm.iter().map(|x| x.0).sum();
+    assert!((w - floor.incident_w).abs() < 1e-9 * floor.incident_w, "{w} vs {}", floor.incident_w);
+    assert!((lm - floor.incident_lm).abs() < 1e-9 * floor.incident_lm, "{lm} vs {}", floor.incident_lm);
+    let area: f64 = m.texel_area_m2.iter().sum();
+    assert!((area - floor.area_m2).abs() < 1e-6 * floor.area_m2);
+}
+
+#[test]
+fn a_uniformly_lit_plate_maps_flat_within_noise() {
+    // A collimated beam wider than the plate lights it uniformly, so every texel's irradiance
+    // estimates the same value: Σ (E_k − Ē)²/σ_k² over the 100 texels is χ² with 99 degrees of
+    // freedom (Ē is their inverse-variance mean). Its 1e-4 tails bound it from both sides: a
+    // pattern in the map fails the upper bound, and standard errors that are too large fail the
+    // lower one.
+    let toml = r#"
+        [[surfaces]]
+        name = "plate"
+        material = "absorber"
+        shape = { type = "quad", corners = [[0, 0, 0], [2, 0, 0], [2, 1, 0], [0, 1, 0]] }
+        map = { resolution = [20, 5] }
+        [[lights]]
+        name = "sun"
+        shape = { type = "quad", corners = [[-1, -1, 1], [-1, 2, 1], [3, 2, 1], [3, -1, 1]] }
+        power_w = 12
+        distribution = "collimated"
+    "#;
+    let (f, maps) = run_maps(toml, 400_000, 5);
+    let e = maps[0].irradiance_w_m2();
+    let weights: Vec<f64> = e.iter().map(|x| 1.0 / (x.1 * x.1)).collect();
+    let mean = e.iter().zip(&weights).map(|(x, w)| x.0 * w).sum::<f64>() / weights.iter().sum::<f64>();
+    let chi2: f64 = e.iter().map(|x| ((x.0 - mean) / x.1).powi(2)).sum();
+    let (lo, hi) = chi_square_bounds(99.0);
+    assert!(chi2 > lo && chi2 < hi, "chi-square {chi2} outside [{lo}, {hi}]");
+    // And the flat value is the beam's irradiance: 12 W over the 4 × 3 m² lamp = 1 W/m².
+    let plate = surface(&f, "plate");
+    assert_z("mean irradiance", plate.irradiance_w_m2, 1.0, plate.irradiance_w_m2_stderr, 4.0);
 }

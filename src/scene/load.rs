@@ -22,6 +22,8 @@ const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surf
 const MAX_COORD_M: f64 = 1e15;
 
 /// Largest film (16.7 megapixels): its f64 accumulators then take 0.5 GiB.
+/// Largest side of an irradiance map, in texels.
+const MAX_MAP_SIDE: u64 = 1024;
 const MAX_PIXELS: u64 = 4096 * 4096;
 
 /// Loads and checks a scene file.
@@ -57,6 +59,8 @@ struct Entry {
     name: String,
     material: usize,
     shape: ShapeSpec,
+    /// `map = { resolution = [nu, nv] }`: the resolution and the map's frame in scene units.
+    map: Option<([usize; 2], [DVec3; 3])>,
     line: usize,
     shape_line: usize,
 }
@@ -104,11 +108,32 @@ impl<'s> Loader<'s> {
         if let Some(list) = root.with("surfaces", |n| {
             n.each(|item| {
                 let t = item.table()?;
-                t.allow(&["name", "material", "shape"])?;
+                t.allow(&["name", "material", "shape", "map"])?;
                 let name = self.name(t)?;
                 let material = self.material_ref(t, &material_index)?;
                 let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
-                Ok(Entry { name, material, shape, line: t.line_of_key("name"), shape_line: t.line_of_key("shape") })
+                let map = t.with("map", |n| {
+                    let m = n.table()?;
+                    m.allow(&["resolution"])?;
+                    let resolution = m.require("resolution", |n| {
+                        let r = n.each(|x| x.u64())?;
+                        if r.len() != 2 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
+                            return Err(n.err(format!("expected [nu, nv], each between 1 and {MAX_MAP_SIDE} texels")));
+                        }
+                        Ok([r[0] as usize, r[1] as usize])
+                    })?;
+                    let frame = crate::maps::frame(&shape)
+                        .ok_or_else(|| n.err("an irradiance map needs a surface of type \"quad\" or \"disk\""))?;
+                    Ok((resolution, frame))
+                })?;
+                Ok(Entry {
+                    name,
+                    material,
+                    shape,
+                    map,
+                    line: t.line_of_key("name"),
+                    shape_line: t.line_of_key("shape"),
+                })
             })
         })? {
             for (i, e) in list.into_iter().enumerate() {
@@ -277,6 +302,8 @@ impl<'s> Loader<'s> {
             material: usize,
             tris: Vec<[DVec3; 3]>,
             light: Option<usize>,
+            /// Resolution and frame (m) of its irradiance map.
+            map: Option<([usize; 2], [DVec3; 3])>,
             key: String,
             line: usize,
         }
@@ -290,6 +317,7 @@ impl<'s> Loader<'s> {
                 material: e.material,
                 tris,
                 light: None,
+                map: e.map.map(|(r, f)| (r, f.map(|v| v * unit_m))),
                 key,
                 line: e.shape_line,
             });
@@ -307,7 +335,7 @@ impl<'s> Loader<'s> {
                     let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
-                    shaped.push(Shaped { name, material, tris, light: Some(i), key, line });
+                    shaped.push(Shaped { name, material, tris, light: Some(i), map: None, key, line });
                     point_positions.push(None);
                 }
             }
@@ -328,6 +356,7 @@ impl<'s> Loader<'s> {
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
         let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_specs.len()];
+        let mut texels = 0;
         for sh in shaped {
             let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
             let kept = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
@@ -337,12 +366,18 @@ impl<'s> Loader<'s> {
                 tris.push(m.map(|v| v.as_vec3a()));
                 tri_surface.push(id as u32);
             }
+            let map = sh.map.map(|(resolution, [o, u, v])| {
+                let map = crate::maps::SurfaceMap::new(resolution, o - origin_m, u, v, &kept, texels);
+                texels += map.texels();
+                map
+            });
             surfaces.push(Surface {
                 name: sh.name,
                 material: sh.material,
                 area_m2: area,
                 triangles: kept.len(),
                 light: sh.light,
+                map,
             });
             if let Some(l) = sh.light {
                 light_surface[l] = Some((id, area));

@@ -4,7 +4,7 @@
 mod doc;
 mod load;
 mod obj;
-mod shapes;
+pub(crate) mod shapes;
 
 use std::path::PathBuf;
 
@@ -73,6 +73,8 @@ pub struct Surface {
     pub triangles: usize,
     /// Index into `Scene::lights` when this surface is an area light's.
     pub light: Option<usize>,
+    /// Its irradiance map, when the scene asks for one (`map = { resolution = [nu, nv] }`).
+    pub map: Option<crate::maps::SurfaceMap>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -189,6 +191,11 @@ pub struct Reference {
 }
 
 impl Scene {
+    /// Texels of all irradiance maps together (each map's `offset` indexes into them).
+    pub fn map_texels(&self) -> usize {
+        self.surfaces.iter().filter_map(|s| s.map.as_ref()).map(|m| m.texels()).sum()
+    }
+
     /// The file name without extension: the default output folder's name.
     pub fn stem(&self) -> String {
         self.path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into())

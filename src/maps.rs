@@ -1,0 +1,401 @@
+//! Irradiance maps: photon arrivals on a surface binned over a grid of texels.
+//!
+//! A mapped surface (a quad or a disk) carries an affine frame p = o + u·U + v·V with (u, v) in
+//! [0, 1]²: a quad's first corner and its two edges from it, or the square around a disk. Texels
+//! are equal rectangles in that plane, so the map reads like a plan view. A texel's area is the
+//! part of the surface inside it (its triangles clipped to the texel in (u, v), times |U × V|),
+//! so texels that the surface only partly covers, as along a disk's rim or a trapezoid's slanted
+//! side, still give true irradiance. Every arrival on the surface lands in one texel (clamped at
+//! the edges), so the texels' fluxes add up to the surface's incident tally exactly.
+
+use glam::{DVec2, DVec3, Vec3A};
+
+#[derive(Clone, Debug)]
+pub struct SurfaceMap {
+    pub resolution: [usize; 2],
+    /// Frame origin (recentred scene coordinates, m) and the dual vectors: u = (p − o)·du.
+    origin: Vec3A,
+    du: Vec3A,
+    dv: Vec3A,
+    /// |U| and |V|, m: the map's extent along u and v.
+    pub size_m: [f64; 2],
+    /// Area of the surface inside each texel, m², index = j·nu + i (i along u, j along v).
+    pub texel_area_m2: Vec<f64>,
+    /// First texel of this map in the scene's texel array.
+    pub offset: usize,
+}
+
+impl SurfaceMap {
+    /// The map of a surface made of `tris` (m, the same coordinates as `origin`) over the frame
+    /// (`origin`, `u_edge`, `v_edge`).
+    pub fn new(
+        resolution: [usize; 2],
+        origin: DVec3,
+        u_edge: DVec3,
+        v_edge: DVec3,
+        tris: &[[DVec3; 3]],
+        offset: usize,
+    ) -> Self {
+        // Dual basis from the Gram matrix: u = (p − o)·du, v = (p − o)·dv, exact in the plane.
+        let (uu, uv, vv) = (u_edge.dot(u_edge), u_edge.dot(v_edge), v_edge.dot(v_edge));
+        let det = uu * vv - uv * uv;
+        let du = (vv * u_edge - uv * v_edge) / det;
+        let dv = (uu * v_edge - uv * u_edge) / det;
+        let to_uv = |p: DVec3| DVec2::new((p - origin).dot(du), (p - origin).dot(dv));
+        let [nu, nv] = resolution;
+        let mut texel_area_m2 = vec![0.0; nu * nv];
+        // Each triangle's area splits over the texels by its (u, v) image; in the plane the area
+        // scale is |U × V| per unit of (u, v), i.e. the triangle's area over its (u, v) area.
+        for t in tris {
+            let q = t.map(to_uv);
+            let uv_area = polygon_area(&q);
+            let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
+            if !(uv_area > 0.0) {
+                continue;
+            }
+            let scale = area / uv_area;
+            let (lo, hi) = (q[0].min(q[1]).min(q[2]), q[0].max(q[1]).max(q[2]));
+            let cells = |a: f64, b: f64, n: usize| {
+                let first = ((a * n as f64).floor().max(0.0) as usize).min(n - 1);
+                let last = ((b * n as f64).floor().max(0.0) as usize).min(n - 1);
+                first..=last
+            };
+            for j in cells(lo.y, hi.y, nv) {
+                for i in cells(lo.x, hi.x, nu) {
+                    // Edge texels reach to ±∞ so a surface sticking out of [0, 1]² (a non-planar
+                    // quad's far corner) keeps its area where its arrivals are clamped to.
+                    let edge = |k: usize, n: usize, lo_side: bool| -> f64 {
+                        match (k, lo_side) {
+                            (0, true) => f64::NEG_INFINITY,
+                            (k, false) if k == n - 1 => f64::INFINITY,
+                            (k, true) => k as f64 / n as f64,
+                            (k, false) => (k + 1) as f64 / n as f64,
+                        }
+                    };
+                    let rect = [edge(i, nu, true), edge(i, nu, false), edge(j, nv, true), edge(j, nv, false)];
+                    let clipped = clip_to_rect(&q, rect);
+                    texel_area_m2[j * nu + i] += polygon_area(&clipped) * scale;
+                }
+            }
+        }
+        SurfaceMap {
+            resolution,
+            origin: origin.as_vec3a(),
+            du: du.as_vec3a(),
+            dv: dv.as_vec3a(),
+            size_m: [u_edge.length(), v_edge.length()],
+            texel_area_m2,
+            offset,
+        }
+    }
+
+    pub fn texels(&self) -> usize {
+        self.resolution[0] * self.resolution[1]
+    }
+
+    /// Index (in the scene's texel array) of the texel holding surface point `p`.
+    #[inline]
+    pub fn texel_of(&self, p: Vec3A) -> usize {
+        let d = p - self.origin;
+        let [nu, nv] = self.resolution;
+        let i = ((d.dot(self.du) * nu as f32) as isize).clamp(0, nu as isize - 1) as usize;
+        let j = ((d.dot(self.dv) * nv as f32) as isize).clamp(0, nv as isize - 1) as usize;
+        self.offset + j * nu + i
+    }
+}
+
+/// The affine frame (origin, U, V) of a shape that can carry a map, in its own units after its
+/// transform: a quad's first corner with the edges to its second and fourth corners; the square
+/// circumscribing a disk, along the same in-plane axes its triangles are built on.
+pub fn frame(shape: &crate::scene::shapes::ShapeSpec) -> Option<[DVec3; 3]> {
+    use crate::scene::shapes::ShapeSpec;
+    let (o, u, v, t) = match shape {
+        ShapeSpec::Quad { corners, transform } => {
+            let [a, b, _, d] = corners.map(DVec3::from);
+            (a, b - a, d - a, transform)
+        }
+        ShapeSpec::Disk { center, normal, radius, transform, .. } => {
+            let (e1, e2) = DVec3::from(*normal).normalize().any_orthonormal_pair();
+            let c = DVec3::from(*center);
+            (c - *radius * (e1 + e2), 2.0 * *radius * e1, 2.0 * *radius * e2, transform)
+        }
+        _ => return None,
+    };
+    let o_t = t.apply_point(o);
+    Some([o_t, t.apply_point(o + u) - o_t, t.apply_point(o + v) - o_t])
+}
+
+/// Area of a simple polygon (shoelace), ≥ 0.
+fn polygon_area(p: &[DVec2]) -> f64 {
+    let n = p.len();
+    if n < 3 {
+        return 0.0;
+    }
+    let twice: f64 = (0..n).map(|k| p[k].perp_dot(p[(k + 1) % n])).sum();
+    0.5 * twice.abs()
+}
+
+/// Sutherland–Hodgman clip of a convex polygon to [u0, u1] × [v0, v1] (bounds may be infinite).
+fn clip_to_rect(poly: &[DVec2], [u0, u1, v0, v1]: [f64; 4]) -> Vec<DVec2> {
+    let mut out: Vec<DVec2> = poly.to_vec();
+    // Each plane: inside when s·(coordinate) ≥ s·bound.
+    for (axis, bound, sign) in [(0, u0, 1.0), (0, u1, -1.0), (1, v0, 1.0), (1, v1, -1.0)] {
+        if !bound.is_finite() || out.is_empty() {
+            continue;
+        }
+        let inside = |p: DVec2| sign * (p[axis] - bound) >= 0.0;
+        let input = std::mem::take(&mut out);
+        for k in 0..input.len() {
+            let (a, b) = (input[k], input[(k + 1) % input.len()]);
+            let (ia, ib) = (inside(a), inside(b));
+            if ia {
+                out.push(a);
+            }
+            if ia != ib {
+                let t = (bound - a[axis]) / (b[axis] - a[axis]);
+                out.push(a + t * (b - a));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texel_areas_of_a_trapezoid_add_up_to_its_area_and_full_texels_are_equal() {
+        // The Cornell floor (m): a trapezoid whose (u, v) image leaves a sliver of [0, 1]² empty.
+        let [a, b, c, d] =
+            [[0.5528, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.5592], [0.5496, 0.0, 0.5592]].map(DVec3::from);
+        let tris = [[a, b, c], [a, c, d]];
+        let area: f64 = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).sum();
+        let map = SurfaceMap::new([7, 5], a, b - a, d - a, &tris, 0);
+        let total: f64 = map.texel_area_m2.iter().sum();
+        assert!((total - area).abs() < 1e-12 * area, "{total} vs {area}");
+        // An interior texel is exactly |U × V| / (7·5).
+        let full = (b - a).cross(d - a).length() / 35.0;
+        assert!((map.texel_area_m2[2 * 7 + 3] - full).abs() < 1e-12 * full);
+        // The texel at u = 1, v = 1 (the corner C lies at u < 1): partly covered.
+        assert!(map.texel_area_m2[4 * 7 + 6] < full);
+    }
+
+    #[test]
+    fn disk_texels_cover_the_disk_only() {
+        let r = 1.0;
+        let shape = crate::scene::shapes::ShapeSpec::Disk {
+            center: [0.0, 0.0, 0.0],
+            normal: [0.0, 0.0, 1.0],
+            radius: r,
+            segments: 256,
+            transform: Default::default(),
+        };
+        let [o, u, v] = frame(&shape).unwrap();
+        let ring: Vec<DVec3> = (0..256)
+            .map(|i| {
+                let (e1, e2) = DVec3::Z.any_orthonormal_pair();
+                let phi = 2.0 * std::f64::consts::PI * i as f64 / 256.0;
+                r * (phi.cos() * e1 + phi.sin() * e2)
+            })
+            .collect();
+        let tris: Vec<[DVec3; 3]> = (0..256).map(|i| [DVec3::ZERO, ring[i], ring[(i + 1) % 256]]).collect();
+        let map = SurfaceMap::new([8, 8], o, u, v, &tris, 0);
+        let polygon_area = 0.5 * 256.0 * (2.0 * std::f64::consts::PI / 256.0).sin();
+        assert!((map.texel_area_m2.iter().sum::<f64>() - polygon_area).abs() < 1e-12);
+        // Corner texels lie outside the disk; a centre texel is full (0.25 × 0.25 m).
+        assert_eq!(map.texel_area_m2[0], 0.0);
+        assert!((map.texel_area_m2[3 * 8 + 3] - 0.0625).abs() < 1e-12);
+    }
+}
+
+/// One surface's map as estimates per texel, row-major with j (v) increasing.
+pub struct MapEstimate {
+    pub surface: String,
+    pub resolution: [usize; 2],
+    pub size_m: [f64; 2],
+    pub texel_area_m2: Vec<f64>,
+    /// (value, standard error) per texel: incident W and lm.
+    pub flux_w: Vec<(f64, f64)>,
+    pub flux_lm: Vec<(f64, f64)>,
+}
+
+impl MapEstimate {
+    /// Per texel flux over area (0 where the surface does not reach into the texel).
+    fn per_area(&self, flux: &[(f64, f64)]) -> Vec<(f64, f64)> {
+        flux.iter()
+            .zip(&self.texel_area_m2)
+            .map(|(&(f, s), &a)| if a > 0.0 { (f / a, s / a) } else { (0.0, 0.0) })
+            .collect()
+    }
+
+    pub fn irradiance_w_m2(&self) -> Vec<(f64, f64)> {
+        self.per_area(&self.flux_w)
+    }
+
+    pub fn illuminance_lx(&self) -> Vec<(f64, f64)> {
+        self.per_area(&self.flux_lm)
+    }
+}
+
+/// The maps of every mapped surface of a finished run.
+pub fn estimates(scene: &crate::scene::Scene, r: &crate::run::RunResult) -> Vec<MapEstimate> {
+    let t = &r.tallies;
+    let model = r.transport.error_model();
+    scene
+        .surfaces
+        .iter()
+        .filter_map(|s| s.map.as_ref().map(|m| (s, m)))
+        .map(|(s, m)| {
+            let range = m.offset..m.offset + m.texels();
+            MapEstimate {
+                surface: s.name.clone(),
+                resolution: m.resolution,
+                size_m: m.size_m,
+                texel_area_m2: m.texel_area_m2.clone(),
+                flux_w: range.clone().map(|k| t.estimate(&t.texels, k, r.emitted_w, model)).collect(),
+                flux_lm: range.map(|k| t.estimate(&t.texels_lm, k, r.emitted_w, model)).collect(),
+            }
+        })
+        .collect()
+}
+
+/// A file name for a surface's map: its name with anything but letters, digits, '-' and '_'
+/// replaced by '_'.
+pub fn file_stem(surface: &str) -> String {
+    surface.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
+}
+
+/// maps/<surface>.exr: irradiance (W/m²), illuminance (lx) and their standard errors, f32, one
+/// pixel per texel, u to the right and v up (row 0 is the largest v).
+pub fn write_exr(dir: &std::path::Path, m: &MapEstimate) -> Result<std::path::PathBuf, crate::error::Error> {
+    use exr::prelude::*;
+    let [nu, nv] = m.resolution;
+    let flip = |values: &[(f64, f64)], pick: fn(&(f64, f64)) -> f64| -> Vec<f32> {
+        (0..nv).rev().flat_map(|j| (0..nu).map(move |i| j * nu + i)).map(|k| pick(&values[k]) as f32).collect()
+    };
+    let (e, ev) = (m.irradiance_w_m2(), m.illuminance_lx());
+    let channels = AnyChannels::sort(SmallVec::from_vec(vec![
+        AnyChannel::new("irradiance_w_m2", FlatSamples::F32(flip(&e, |x| x.0))),
+        AnyChannel::new("irradiance_w_m2_stderr", FlatSamples::F32(flip(&e, |x| x.1))),
+        AnyChannel::new("illuminance_lx", FlatSamples::F32(flip(&ev, |x| x.0))),
+        AnyChannel::new("illuminance_lx_stderr", FlatSamples::F32(flip(&ev, |x| x.1))),
+    ]));
+    let layer = Layer::new((nu, nv), LayerAttributes::named(m.surface.as_str()), Encoding::FAST_LOSSLESS, channels);
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    let name = format!("{}.exr", file_stem(&m.surface));
+    Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_buffered(&mut bytes)
+        .map_err(|e| crate::error::Error::Other(format!("cannot encode {name}: {e}")))?;
+    crate::output::write_atomic(dir, &name, bytes.get_ref())
+}
+
+/// Viridis-like false colour for t in [0, 1] (matplotlib's viridis at 5 stops, linear between).
+fn false_colour(t: f64) -> plotters::style::RGBColor {
+    const STOPS: [[f64; 3]; 5] =
+        [[68.0, 1.0, 84.0], [59.0, 82.0, 139.0], [33.0, 145.0, 140.0], [94.0, 201.0, 98.0], [253.0, 231.0, 37.0]];
+    let x = t.clamp(0.0, 1.0) * 4.0;
+    let k = (x as usize).min(3);
+    let f = x - k as f64;
+    let c = |i: usize| (STOPS[k][i] + f * (STOPS[k + 1][i] - STOPS[k][i])).round() as u8;
+    plotters::style::RGBColor(c(0), c(1), c(2))
+}
+
+/// A scale-bar value: whole lux from 100 lx up, else three significant figures.
+fn lux_label(v: f64) -> String {
+    if v >= 100.0 {
+        format!("{v:.0}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// maps/<surface>.png: the illuminance map in false colour with a scale bar in lux, axes in
+/// metres along the map's u and v edges, and a title naming the scene and the surface.
+pub fn write_png(
+    dir: &std::path::Path,
+    m: &MapEstimate,
+    scene_name: &str,
+) -> Result<std::path::PathBuf, crate::error::Error> {
+    use plotters::prelude::*;
+    let name = format!("{}.png", file_stem(&m.surface));
+    let err = |e: &dyn std::fmt::Display| crate::error::Error::Other(format!("cannot draw {name}: {e}"));
+    crate::output::register_plot_font();
+    let (w, h) = (900u32, 720u32);
+    let mut rgb = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let root = root
+            .titled(&format!("{scene_name}: illuminance on \"{}\" (lx)", m.surface), ("sans-serif", 22))
+            .map_err(|e| err(&e))?;
+        let (left, right) = root.split_horizontally(w - 150);
+        let ev = m.illuminance_lx();
+        let top = ev.iter().map(|x| x.0).fold(0.0, f64::max);
+        let top = if top > 0.0 { top } else { 1.0 };
+        let [nu, nv] = m.resolution;
+        let [su, sv] = m.size_m;
+        let mut chart = ChartBuilder::on(&left)
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(65)
+            .build_cartesian_2d(0.0..su, 0.0..sv)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("u (m, along the first edge)")
+            .y_desc("v (m)")
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        chart
+            .draw_series((0..nv).flat_map(|j| (0..nu).map(move |i| (i, j))).map(|(i, j)| {
+                let k = j * nu + i;
+                let colour =
+                    if m.texel_area_m2[k] > 0.0 { false_colour(ev[k].0 / top) } else { RGBColor(220, 220, 220) };
+                let (du, dv) = (su / nu as f64, sv / nv as f64);
+                Rectangle::new(
+                    [(i as f64 * du, j as f64 * dv), ((i + 1) as f64 * du, (j + 1) as f64 * dv)],
+                    colour.filled(),
+                )
+            }))
+            .map_err(|e| err(&e))?;
+        // Scale bar: a column of colour with its values in lux.
+        let mut bar = ChartBuilder::on(&right)
+            .margin_top(15)
+            .margin_bottom(60)
+            .margin_right(25)
+            .y_label_area_size(90)
+            .build_cartesian_2d(0.0..1.0, 0.0..top)
+            .map_err(|e| err(&e))?;
+        bar.configure_mesh()
+            .disable_mesh()
+            .disable_x_axis()
+            .y_desc("illuminance (lx)")
+            .y_label_formatter(&|v| lux_label(*v))
+            .label_style(("sans-serif", 15))
+            .axis_desc_style(("sans-serif", 16))
+            .draw()
+            .map_err(|e| err(&e))?;
+        let steps = 200;
+        bar.draw_series((0..steps).map(|s| {
+            let (a, b) = (s as f64 / steps as f64 * top, (s + 1) as f64 / steps as f64 * top);
+            Rectangle::new([(0.0, a), (1.0, b)], false_colour((a + b) / (2.0 * top)).filled())
+        }))
+        .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+    }
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, w, h);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc.write_header().map_err(|e| err(&e))?;
+        wr.write_image_data(&rgb).map_err(|e| err(&e))?;
+    }
+    crate::output::write_atomic(dir, &name, &bytes)
+}
