@@ -27,6 +27,8 @@ enum Origin {
 struct EmitLight {
     origin: Origin,
     distribution: Distribution,
+    /// An IES light's table and C = 0 direction (the nadir is the emission axis).
+    ies: Option<(std::sync::Arc<crate::ies::IesProfile>, Option<Vec3A>)>,
     spectrum: Option<SpectralSampler>,
     spectrum_shape: crate::spectrum::Spectrum,
     /// Grey transport's colour weights: ∫S·(x̄,ȳ,z̄)dλ / (∫S dλ · ∫ȳ dλ) for the light's spectrum S.
@@ -108,6 +110,7 @@ impl Emitter {
                 EmitLight {
                     origin,
                     distribution: l.distribution,
+                    ies: l.ies.as_ref().map(|i| (i.profile.clone(), i.c0.map(|c| c.as_vec3a()))),
                     spectrum: SpectralSampler::new(&l.spectrum, range),
                     spectrum_shape: l.spectrum.clone(),
                     grey_xyz,
@@ -265,9 +268,13 @@ impl Emitter {
     #[inline]
     fn direction_of(&self, light: usize, axis: Vec3A, u1: f32, u2: f32) -> Vec3A {
         let l = &self.lights[light];
-        match (&l.origin, l.distribution) {
-            (Origin::Point { .. }, Distribution::Isotropic) => uniform_sphere(u1, u2),
-            (_, d) => direction(d, axis, u1, u2),
+        match (&l.origin, l.distribution, &l.ies) {
+            (Origin::Point { .. }, Distribution::Isotropic, _) => uniform_sphere(u1, u2),
+            (_, Distribution::Ies, Some((profile, c0))) => {
+                let (gamma, c) = profile.sample(u1 as f64, u2 as f64);
+                crate::ies::Frame::new(axis, *c0).direction(gamma, c)
+            }
+            (_, d, _) => direction(d, axis, u1, u2),
         }
     }
 
@@ -291,6 +298,10 @@ impl Emitter {
         let cos = axis.dot(w);
         match l.distribution {
             Distribution::Isotropic if is_point => 1.0 / (4.0 * PI),
+            Distribution::Ies => l.ies.as_ref().map_or(0.0, |(profile, c0)| {
+                let (gamma, c) = crate::ies::Frame::new(axis, *c0).angles(w);
+                profile.pdf(gamma, c) as f32
+            }),
             _ if cos <= 0.0 => 0.0,
             Distribution::Lambertian => cos / PI,
             Distribution::Isotropic => 1.0 / (2.0 * PI),
@@ -308,5 +319,6 @@ fn direction(d: Distribution, n: Vec3A, u1: f32, u2: f32) -> Vec3A {
         Distribution::Isotropic => uniform_hemisphere(n, u1, u2),
         Distribution::Collimated => n,
         Distribution::CosinePower(e) => cosine_power_lobe(n, e as f32, u1, u2),
+        Distribution::Ies => unreachable!("IES directions come from the light's table"),
     }
 }

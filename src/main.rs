@@ -222,6 +222,11 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
             photon::maps::write_png(&dir, m, &scene.stem())?;
         }
     }
+    for e in photon::farfield::estimates(&scene, &result) {
+        photon::farfield::write_csv(&out_dir, &e)?;
+        photon::farfield::write_png(&out_dir, &e, &scene.stem())?;
+    }
+    output::write_spectra(&out_dir, &scene, &result)?;
     output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {
         print!("{}", output::summary_table(&flux, &info));

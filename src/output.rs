@@ -338,3 +338,27 @@ pub fn register_plot_font() {
         let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, font);
     });
 }
+
+/// spectrum_<surface>.csv for each surface with `spectrum_bins`: incident flux per wavelength bin
+/// (W, and W/nm over the bin's width), with standard errors.
+pub fn write_spectra(dir: &Path, scene: &Scene, r: &RunResult) -> Result<Vec<PathBuf>, Error> {
+    let t = &r.tallies;
+    let model = r.transport.error_model();
+    let (lo, hi) = scene.simulation.wavelength_range_nm;
+    let mut written = Vec::new();
+    for s in &scene.surfaces {
+        let Some((bins, first)) = s.spectrum_bins else { continue };
+        let width = (hi - lo) / bins as f64;
+        let mut text = String::from(
+            "lambda_lo_nm,lambda_hi_nm,incident_w,incident_w_stderr,incident_w_per_nm,incident_w_per_nm_stderr\n",
+        );
+        for k in 0..bins {
+            let (w, se) = t.estimate(&t.spectra, first + k, r.emitted_w, model);
+            let a = lo + k as f64 * width;
+            text.push_str(&format!("{a},{},{w},{se},{},{}\n", a + width, w / width, se / width));
+        }
+        let name = format!("spectrum_{}.csv", crate::maps::file_stem(&s.name));
+        written.push(write_atomic(dir, &name, text.as_bytes())?);
+    }
+    Ok(written)
+}

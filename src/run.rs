@@ -189,7 +189,7 @@ pub fn simulate_observed(
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
 
     let progress = make_progress(opts.progress, (cap != u64::MAX).then_some(cap));
-    let mut tallies = Tallies::new(scene.surfaces.len(), scene.map_texels());
+    let mut tallies = Tallies::for_scene(scene);
     let mut stop = StopReason::Photons;
     // Workers take batch indices in order and send results back; this thread merges them in
     // index order as they arrive, so tracing never waits for merging and the merge order (hence

@@ -126,6 +126,11 @@ pub struct Tallies {
     /// Incident weight per texel of the scene's irradiance maps (W and lm, as above).
     pub texels: Channel,
     pub texels_lm: Channel,
+    /// Weight leaving the scene per far-field bin (W and lm).
+    pub farfield: Channel,
+    pub farfield_lm: Channel,
+    /// Incident weight per wavelength bin of the surfaces that ask for a spectrum.
+    pub spectra: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -171,6 +176,15 @@ impl Counters {
 }
 
 impl Tallies {
+    /// Empty tallies sized for a scene's surfaces, map texels, far-field bins and spectral bins.
+    pub fn for_scene(scene: &crate::scene::Scene) -> Self {
+        let mut t = Tallies::new(scene.surfaces.len(), scene.map_texels());
+        t.farfield = Channel::new(scene.farfield_bins());
+        t.farfield_lm = Channel::new(scene.farfield_bins());
+        t.spectra = Channel::new(scene.spectrum_bins());
+        t
+    }
+
     pub fn new(surfaces: usize, texels: usize) -> Self {
         Tallies {
             photons: 0,
@@ -180,6 +194,9 @@ impl Tallies {
             absorbed_lm: Channel::new(surfaces),
             texels: Channel::new(texels),
             texels_lm: Channel::new(texels),
+            farfield: Channel::new(0),
+            farfield_lm: Channel::new(0),
+            spectra: Channel::new(0),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
@@ -198,6 +215,9 @@ impl Tallies {
             (&mut self.absorbed_lm, &b.absorbed_lm),
             (&mut self.texels, &b.texels),
             (&mut self.texels_lm, &b.texels_lm),
+            (&mut self.farfield, &b.farfield),
+            (&mut self.farfield_lm, &b.farfield_lm),
+            (&mut self.spectra, &b.spectra),
         ] {
             a.merge(x, b.photons);
         }
@@ -254,7 +274,7 @@ impl Tallies {
         let w = self.watts_per_weight(emitted_w);
         Ledger {
             emitted_w,
-            absorbed_w: self.absorbed.moments.iter().map(|m| m.sum).sum::<f64>() * w,
+            absorbed_w: (self.absorbed.moments.iter().map(|m| m.sum).sum::<f64>() + 0.0) * w,
             escaped_w: self.escaped * w,
             truncated_w: self.truncated * w,
         }

@@ -190,13 +190,20 @@ impl Kernel<'_> {
         let materials: Vec<&Material> = (0..n_surfaces).map(|s| scene.material_of(s)).collect();
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
-        let mut out = Tallies::new(n_surfaces, scene.map_texels());
+        let mut out = Tallies::for_scene(scene);
         let mut incident = HistoryScores::new(n_surfaces);
         let mut absorbed = HistoryScores::new(n_surfaces);
         // Irradiance maps: one branch per arrival, not taken in scenes without maps.
         let maps: Vec<Option<&SurfaceMap>> = scene.surfaces.iter().map(|s| s.map.as_ref()).collect();
         let has_maps = maps.iter().any(|m| m.is_some());
         let mut texels = HistoryScores::new(if has_maps { scene.map_texels() } else { 0 });
+        // Far-field detectors and surface spectra, likewise off unless asked for.
+        let detectors = &scene.detectors;
+        let mut farfield = HistoryScores::new(scene.farfield_bins());
+        let spectrum_bins: Vec<Option<(usize, usize)>> = scene.surfaces.iter().map(|s| s.spectrum_bins).collect();
+        let has_spectra = spectrum_bins.iter().any(|b| b.is_some());
+        let mut spectra = HistoryScores::new(scene.spectrum_bins());
+        let (range_lo, range_width) = (range.0, range.1 - range.0);
 
         for photon in 0..count as u32 {
             let u: EmitSample = match &strata {
@@ -223,6 +230,9 @@ impl Kernel<'_> {
                 out.counters.rays += 1;
                 let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {
                     out.escaped += weight;
+                    for d in detectors {
+                        farfield.add(d.bin_of(dir) as u32, weight);
+                    }
                     break;
                 };
                 let prim = hit.prim as usize;
@@ -267,6 +277,12 @@ impl Kernel<'_> {
                 if has_maps {
                     if let Some(map) = maps[surface as usize] {
                         texels.add(map.texel_of(p) as u32, weight);
+                    }
+                }
+                if SPECTRAL && has_spectra {
+                    if let Some((bins, first)) = spectrum_bins[surface as usize] {
+                        let k = (((lambda - range_lo) / range_width * bins as f64) as usize).min(bins - 1);
+                        spectra.add((first + k) as u32, weight);
                     }
                 }
                 if let (true, Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
@@ -327,6 +343,12 @@ impl Kernel<'_> {
             absorbed.flush_scaled(&mut out.absorbed.moments, Some((&mut out.absorbed_lm.moments, lm_per_w)));
             if has_maps {
                 texels.flush_scaled(&mut out.texels.moments, Some((&mut out.texels_lm.moments, lm_per_w)));
+            }
+            if !detectors.is_empty() {
+                farfield.flush_scaled(&mut out.farfield.moments, Some((&mut out.farfield_lm.moments, lm_per_w)));
+            }
+            if SPECTRAL && has_spectra {
+                spectra.flush(&mut out.spectra.moments);
             }
         }
         out.photons = count;

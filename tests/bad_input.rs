@@ -899,3 +899,61 @@ fn map_with_an_unknown_key() {
     let toml = edit(BASE, "[1, 0, 0]] }\n", "[1, 0, 0]] }\nmap = { resolution = [8, 8], colour = \"jet\" }\n");
     expect_bad("map-key", &toml, &[], &[&at(line_of(&toml, "map ="), "surfaces[0].map.colour")]);
 }
+
+const GOOD_IES: &str = "IESNA:LM-63-2002\nTILT=NONE\n1 -1 1 3 1 1 2 0 0 0\n1 1 0\n0 45 90\n0\n100 80 0\n";
+
+/// BASE's quad light turned into an IES one.
+fn ies_scene() -> String {
+    edit(BASE, "power_w = 10", "distribution = { ies = \"lamp.ies\" }")
+}
+
+#[test]
+fn ies_with_a_word_among_the_candela_values() {
+    let ies = GOOD_IES.replace("100 80 0", "100 eighty 0");
+    expect_bad(
+        "ies-word",
+        &ies_scene(),
+        &[("lamp.ies", &ies)],
+        &["{dir}/lamp.ies:7: `eighty` is not a number (a candela value)", "lights[0].distribution.ies"],
+    );
+}
+
+#[test]
+fn ies_cut_short() {
+    let ies = GOOD_IES.replace("100 80 0\n", "100 80\n");
+    expect_bad(
+        "ies-short",
+        &ies_scene(),
+        &[("lamp.ies", &ies)],
+        &["{dir}/lamp.ies:7: the file ends where a candela value should be"],
+    );
+}
+
+#[test]
+fn ies_with_a_tilt_table() {
+    let ies = GOOD_IES.replace("TILT=NONE", "TILT=INCLUDE");
+    expect_bad("ies-tilt", &ies_scene(), &[("lamp.ies", &ies)], &["{dir}/lamp.ies:2: TILT=INCLUDE is not supported"]);
+}
+
+#[test]
+fn ies_with_falling_angles() {
+    let ies = GOOD_IES.replace("0 45 90\n", "0 90 45\n");
+    expect_bad("ies-angles", &ies_scene(), &[("lamp.ies", &ies)], &["{dir}/lamp.ies:5: vertical angles must increase"]);
+}
+
+#[test]
+fn ies_file_missing() {
+    expect_bad("ies-missing", &ies_scene(), &[], &["{dir}/lamp.ies: cannot read IES file"]);
+}
+
+#[test]
+fn ies_with_upward_light_on_an_area_light() {
+    let ies = GOOD_IES.replace("0 45 90\n", "0 90 180\n");
+    let toml = ies_scene();
+    expect_bad(
+        "ies-upward",
+        &toml,
+        &[("lamp.ies", &ies)],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution"), "use a point light"],
+    );
+}

@@ -15,7 +15,8 @@ use crate::geometry::Geometry;
 use crate::photometry;
 use crate::spectrum::Spectrum;
 
-const ROOT_KEYS: &[&str] = &["simulation", "camera", "scene", "materials", "surfaces", "lights", "reference"];
+const ROOT_KEYS: &[&str] =
+    &["simulation", "camera", "scene", "materials", "surfaces", "lights", "reference", "detectors"];
 
 /// Largest coordinate accepted, in metres: far beyond any real scene, and small enough that
 /// the BVH's single-precision bounds and surface areas cannot overflow.
@@ -24,6 +25,8 @@ const MAX_COORD_M: f64 = 1e15;
 /// Largest film (16.7 megapixels): its f64 accumulators then take 0.5 GiB.
 /// Largest side of an irradiance map, in texels.
 const MAX_MAP_SIDE: u64 = 1024;
+/// Most wavelength bins of a surface's spectrum.
+const MAX_SPECTRUM_BINS: u64 = 10_000;
 const MAX_PIXELS: u64 = 4096 * 4096;
 
 /// Loads and checks a scene file.
@@ -61,6 +64,7 @@ struct Entry {
     shape: ShapeSpec,
     /// `map = { resolution = [nu, nv] }`: the resolution and the map's frame in scene units.
     map: Option<([usize; 2], [DVec3; 3])>,
+    spectrum_bins: Option<usize>,
     line: usize,
     shape_line: usize,
 }
@@ -108,7 +112,16 @@ impl<'s> Loader<'s> {
         if let Some(list) = root.with("surfaces", |n| {
             n.each(|item| {
                 let t = item.table()?;
-                t.allow(&["name", "material", "shape", "map"])?;
+                t.allow(&["name", "material", "shape", "map", "spectrum_bins"])?;
+                let spectrum_bins = t.with("spectrum_bins", |n| {
+                    let k = n.u64()?;
+                    if !(1..=MAX_SPECTRUM_BINS).contains(&k) {
+                        return Err(
+                            n.err(format!("spectrum_bins must be between 1 and {MAX_SPECTRUM_BINS}, found {k}"))
+                        );
+                    }
+                    Ok(k as usize)
+                })?;
                 let name = self.name(t)?;
                 let material = self.material_ref(t, &material_index)?;
                 let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
@@ -131,6 +144,7 @@ impl<'s> Loader<'s> {
                     material,
                     shape,
                     map,
+                    spectrum_bins,
                     line: t.line_of_key("name"),
                     shape_line: t.line_of_key("shape"),
                 })
@@ -150,6 +164,7 @@ impl<'s> Loader<'s> {
             power: PowerSpec,
             spectrum: Spectrum,
             distribution: Distribution,
+            ies: Option<IesLight>,
             axis: Option<DVec3>,
             path: String,
             line: usize,
@@ -178,9 +193,28 @@ impl<'s> Loader<'s> {
                 let name = self.name(t)?;
                 let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
                 let material = if t.has("material") { self.material_ref(t, &material_index)? } else { 0 };
+                let is_point = matches!(shape, ShapeSpec::Point { .. });
+                // SPEC: area lights default to lambertian; a point light has no surface to be
+                // Lambertian about, so it defaults to isotropic.
+                let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
+                let (distribution, ies) =
+                    t.with("distribution", |n| self.distribution(n))?.unwrap_or((default_distribution, None));
+                if let (Some(ies), false) = (&ies, is_point) {
+                    if ies.profile.emits_upward() {
+                        return Err(t.err_at(
+                            "distribution",
+                            format!(
+                                "{} sends light above the horizontal (gamma > 90 degrees), which an area light \
+                                 cannot emit from its front side: use a point light",
+                                ies.file.display()
+                            ),
+                        ));
+                    }
+                }
                 let given: Vec<&str> =
                     ["power_w", "power_lm", "radiance"].into_iter().filter(|k| t.has(k)).collect();
                 let power = match given.as_slice() {
+                    [] if ies.is_some() => PowerSpec::Lumens(ies.as_ref().map_or(0.0, |i| i.profile.total_lm)),
                     [] => {
                         return Err(t.err(
                             "missing `power_w` (radiant flux, W), `power_lm` (luminous flux, lm) or `radiance` \
@@ -210,6 +244,12 @@ impl<'s> Loader<'s> {
                     }
                     _ => return Err(t.err_at(given[1], format!("give only one of {}", given.join(", ")))),
                 };
+                if matches!(power, PowerSpec::Radiance(_)) && ies.is_some() {
+                    return Err(t.err_at(
+                        "radiance",
+                        "an IES light takes `power_w`, `power_lm`, or neither (the file's lumens), not `radiance`",
+                    ));
+                }
                 if matches!(power, PowerSpec::Radiance(_)) && t.has("spectrum") {
                     return Err(t.err_at(
                         "spectrum",
@@ -223,15 +263,10 @@ impl<'s> Loader<'s> {
                 }
                 if matches!(power, PowerSpec::Lumens(_)) && photometry::efficacy_of(&spectrum, range) <= 0.0 {
                     return Err(t.err_at(
-                        "power_lm",
+                        if t.has("power_lm") { "power_lm" } else { "spectrum" },
                         "this light's spectrum has no visible power in the wavelength range, so lumens cannot set it",
                     ));
                 }
-                let is_point = matches!(shape, ShapeSpec::Point { .. });
-                // SPEC: area lights default to lambertian; a point light has no surface to be
-                // Lambertian about, so it defaults to isotropic.
-                let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
-                let distribution = t.with("distribution", |n| self.distribution(n))?.unwrap_or(default_distribution);
                 let axis = t.with("direction", |n| {
                     let d = DVec3::from(n.vec3()?);
                     if d.length() == 0.0 {
@@ -274,6 +309,7 @@ impl<'s> Loader<'s> {
                     power,
                     spectrum,
                     distribution,
+                    ies,
                     axis,
                     path: t.path.to_string(),
                     line: t.line_of_key("name"),
@@ -304,6 +340,7 @@ impl<'s> Loader<'s> {
             light: Option<usize>,
             /// Resolution and frame (m) of its irradiance map.
             map: Option<([usize; 2], [DVec3; 3])>,
+            spectrum_bins: Option<usize>,
             key: String,
             line: usize,
         }
@@ -318,6 +355,7 @@ impl<'s> Loader<'s> {
                 tris,
                 light: None,
                 map: e.map.map(|(r, f)| (r, f.map(|v| v * unit_m))),
+                spectrum_bins: e.spectrum_bins,
                 key,
                 line: e.shape_line,
             });
@@ -335,7 +373,16 @@ impl<'s> Loader<'s> {
                     let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
-                    shaped.push(Shaped { name, material, tris, light: Some(i), map: None, key, line });
+                    shaped.push(Shaped {
+                        name,
+                        material,
+                        tris,
+                        light: Some(i),
+                        map: None,
+                        spectrum_bins: None,
+                        key,
+                        line,
+                    });
                     point_positions.push(None);
                 }
             }
@@ -356,7 +403,7 @@ impl<'s> Loader<'s> {
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
         let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_specs.len()];
-        let mut texels = 0;
+        let (mut texels, mut spectrum_bins) = (0, 0);
         for sh in shaped {
             let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
             let kept = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
@@ -378,6 +425,10 @@ impl<'s> Loader<'s> {
                 triangles: kept.len(),
                 light: sh.light,
                 map,
+                spectrum_bins: sh.spectrum_bins.map(|n| {
+                    spectrum_bins += n;
+                    (n, spectrum_bins - n)
+                }),
             });
             if let Some(l) = sh.light {
                 light_surface[l] = Some((id, area));
@@ -402,14 +453,22 @@ impl<'s> Loader<'s> {
                         Distribution::Lambertian => std::f64::consts::PI,
                         Distribution::Isotropic => 2.0 * std::f64::consts::PI,
                         Distribution::CosinePower(n) => 2.0 * std::f64::consts::PI / (n + 1.0),
-                        Distribution::Collimated => unreachable!("rejected above"),
+                        Distribution::Collimated | Distribution::Ies => unreachable!("rejected above"),
                     };
                     (area_m2 * projected_sr * radiance.integral(range), radiance)
                 }
             };
             light_lines.push(spec.shape_line);
             let lm_per_w = photometry::efficacy_of(&spectrum, range);
-            lights.push(Light { name: spec.name, shape, power_w, spectrum, lm_per_w, distribution: spec.distribution });
+            lights.push(Light {
+                name: spec.name,
+                shape,
+                power_w,
+                spectrum,
+                lm_per_w,
+                distribution: spec.distribution,
+                ies: spec.ies,
+            });
         }
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
@@ -417,7 +476,10 @@ impl<'s> Loader<'s> {
         for s in &surfaces {
             used[s.material] = true;
         }
-        let effects = effects_of(&materials, &used, range, camera.is_some());
+        let mut effects = effects_of(&materials, &used, range, camera.is_some());
+        // A spectrum asked of a surface needs each photon to carry a wavelength.
+        effects.spectral |= surfaces.iter().any(|s| s.spectrum_bins.is_some());
+        let detectors = self.detectors(root, origin_m)?;
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
@@ -467,6 +529,7 @@ impl<'s> Loader<'s> {
             camera,
             geometry,
             effects,
+            detectors,
             warnings,
             reference,
         })
@@ -670,10 +733,38 @@ impl<'s> Loader<'s> {
         }
     }
 
-    fn distribution(&self, n: Node<'s, '_>) -> R<Distribution> {
+    fn distribution(&self, n: Node<'s, '_>) -> R<(Distribution, Option<IesLight>)> {
         if n.is_table() {
             let t = n.table()?;
-            t.allow(&["cosine_power"])?;
+            t.allow(&["cosine_power", "ies", "c0"])?;
+            if t.has("ies") {
+                if t.has("cosine_power") {
+                    return Err(t.err_at("cosine_power", "give either `ies` or `cosine_power`, not both"));
+                }
+                let rel = t.req_str("ies")?;
+                let file = self.base_dir.join(rel);
+                let line = t.line_of_key("ies");
+                let profile = crate::ies::IesProfile::read(&file).map_err(|mut e| {
+                    e.message = format!(
+                        "{} (IES file named by `{}` at {}:{line})",
+                        e.message,
+                        child_path(t.path, "ies"),
+                        self.src.file.display()
+                    );
+                    e
+                })?;
+                let c0 = t.with("c0", |n| {
+                    let d = DVec3::from(n.vec3()?);
+                    if !(d.length() > 0.0) {
+                        return Err(n.err("c0 must not be the zero vector"));
+                    }
+                    Ok(d.normalize())
+                })?;
+                return Ok((Distribution::Ies, Some(IesLight { profile: std::sync::Arc::new(profile), c0, file })));
+            }
+            if t.has("c0") {
+                return Err(t.err_at("c0", "`c0` orients an IES table: it needs `ies = \"file.ies\"`"));
+            }
             let p = t.require("cosine_power", |n| {
                 let p = n.f64()?;
                 if p < 0.0 {
@@ -681,16 +772,72 @@ impl<'s> Loader<'s> {
                 }
                 Ok(p)
             })?;
-            return Ok(Distribution::CosinePower(p));
+            return Ok((Distribution::CosinePower(p), None));
         }
-        match n.str()? {
-            "lambertian" => Ok(Distribution::Lambertian),
-            "isotropic" => Ok(Distribution::Isotropic),
-            "collimated" => Ok(Distribution::Collimated),
-            other => Err(n.err(format!(
-                "unknown distribution \"{other}\"; known: \"lambertian\", \"isotropic\", \"collimated\", {{ cosine_power = n }}"
-            ))),
-        }
+        let d = match n.str()? {
+            "lambertian" => Distribution::Lambertian,
+            "isotropic" => Distribution::Isotropic,
+            "collimated" => Distribution::Collimated,
+            other => {
+                return Err(n.err(format!(
+                    "unknown distribution \"{other}\"; known: \"lambertian\", \"isotropic\", \"collimated\", \
+                     {{ cosine_power = n }}, {{ ies = \"file.ies\" }}"
+                )))
+            }
+        };
+        Ok((d, None))
+    }
+
+    /// `[[detectors]]`: far-field detectors, `type = "farfield"`, `resolution = [n_gamma, n_c]`,
+    /// optional `name`, `nadir` (default [0, 0, -1]) and `c0` (see `ies::Frame`).
+    fn detectors(&self, root: Table<'s, '_>, _origin_m: DVec3) -> R<Vec<crate::farfield::FarField>> {
+        let mut out: Vec<crate::farfield::FarField> = Vec::new();
+        root.with("detectors", |n| {
+            n.each(|item| {
+                let t = item.table()?;
+                t.allow(&["type", "name", "resolution", "nadir", "c0"])?;
+                let kind = t.req_str("type")?;
+                if kind != "farfield" {
+                    return Err(t.err_at("type", format!("unknown detector type \"{kind}\"; known: \"farfield\"")));
+                }
+                let name = t.str("name")?.unwrap_or_else(|| format!("farfield{}", out.len()));
+                if out.iter().any(|d| d.name == name) {
+                    return Err(t.err_at("name", format!("a detector named \"{name}\" already exists")));
+                }
+                let resolution = t.require("resolution", |n| {
+                    let r = n.each(|x| x.u64())?;
+                    if r.len() != 2 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
+                        return Err(n.err(format!("expected [n_gamma, n_c], each between 1 and {MAX_MAP_SIDE}")));
+                    }
+                    Ok([r[0] as usize, r[1] as usize])
+                })?;
+                let unit = |key: &str| {
+                    t.with(key, |n| {
+                        let d = DVec3::from(n.vec3()?);
+                        if !(d.length() > 0.0) {
+                            return Err(n.err(format!("{key} must not be the zero vector")));
+                        }
+                        Ok(d.normalize().as_vec3a())
+                    })
+                };
+                let nadir = unit("nadir")?.unwrap_or(Vec3A::NEG_Z);
+                let c0 = unit("c0")?;
+                if let Some(c) = c0 {
+                    if c.cross(nadir).length() < 1e-6 {
+                        return Err(t.err_at("c0", "c0 must not be parallel to the nadir"));
+                    }
+                }
+                let offset = out.iter().map(|d| d.bins()).sum();
+                out.push(crate::farfield::FarField {
+                    name,
+                    resolution,
+                    frame: crate::ies::Frame::new(nadir, c0),
+                    offset,
+                });
+                Ok(())
+            })
+        })?;
+        Ok(out)
     }
 
     fn camera(&self, t: Table<'s, '_>) -> R<Camera> {

@@ -75,6 +75,9 @@ pub struct Surface {
     pub light: Option<usize>,
     /// Its irradiance map, when the scene asks for one (`map = { resolution = [nu, nv] }`).
     pub map: Option<crate::maps::SurfaceMap>,
+    /// `spectrum_bins = N`: N equal wavelength bins of incident flux, starting at this index of
+    /// the scene's spectral-bin array.
+    pub spectrum_bins: Option<(usize, usize)>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,6 +90,8 @@ pub enum Distribution {
     Collimated,
     /// Intensity ∝ cosⁿθ about the axis.
     CosinePower(f64),
+    /// Intensity from an IES LM-63 candela table (`Light::ies`), nadir along the axis.
+    Ies,
 }
 
 impl Distribution {
@@ -96,6 +101,7 @@ impl Distribution {
             Distribution::Isotropic => "isotropic".into(),
             Distribution::Collimated => "collimated".into(),
             Distribution::CosinePower(n) => format!("cosine_power {n}"),
+            Distribution::Ies => "ies".into(),
         }
     }
 }
@@ -117,7 +123,17 @@ pub struct Light {
     pub spectrum: Spectrum,
     /// Luminous efficacy of that spectrum over the wavelength range, lm/W (`photometry`).
     pub lm_per_w: f64,
+    /// The candela table and the C = 0 direction of an IES light.
+    pub ies: Option<IesLight>,
     pub distribution: Distribution,
+}
+
+/// An IES light's table, and its C = 0 direction (scene axes) when the scene gives one.
+#[derive(Clone, Debug)]
+pub struct IesLight {
+    pub profile: std::sync::Arc<crate::ies::IesProfile>,
+    pub c0: Option<DVec3>,
+    pub file: PathBuf,
 }
 
 #[derive(Clone, Debug)]
@@ -176,6 +192,8 @@ pub struct Scene {
     pub camera: Option<Camera>,
     pub geometry: Geometry,
     pub effects: Effects,
+    /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
+    pub detectors: Vec<crate::farfield::FarField>,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
@@ -191,6 +209,16 @@ pub struct Reference {
 }
 
 impl Scene {
+    /// Bins of all far-field detectors together.
+    pub fn farfield_bins(&self) -> usize {
+        self.detectors.iter().map(|d| d.bins()).sum()
+    }
+
+    /// Wavelength bins of all surfaces' spectra together.
+    pub fn spectrum_bins(&self) -> usize {
+        self.surfaces.iter().filter_map(|s| s.spectrum_bins).map(|(n, _)| n).sum()
+    }
+
     /// Texels of all irradiance maps together (each map's `offset` indexes into them).
     pub fn map_texels(&self) -> usize {
         self.surfaces.iter().filter_map(|s| s.map.as_ref()).map(|m| m.texels()).sum()
