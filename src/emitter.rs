@@ -5,7 +5,7 @@
 
 use glam::Vec3A;
 
-use crate::geometry::{offset_ray_origin, NO_PRIM};
+use crate::geometry::NO_PRIM;
 use crate::sampling::{
     cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle, Discrete,
 };
@@ -146,8 +146,7 @@ impl Emitter {
         };
         let lp = self.sample_point(geo, light, [u[2], u[3], u[4]]);
         let dir = self.direction_of(light, lp.axis, u[5] as f32, u[6] as f32);
-        let origin =
-            if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
+        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { geo.spawn(lp.point, lp.err, lp.prim, dir) };
         Birth {
             light,
             point: lp.point,

@@ -177,6 +177,29 @@ impl Geometry {
         self.unoccluded(from, seg / len, len * (1.0 - SHADOW_MARGIN), [a.prim, b.prim])
     }
 
+    /// Origin of a ray leaving primitive `prim` at `p` (error bound `err`) along `dir`. A hit
+    /// within rounding of an edge can be rounded onto the edge, or past it; where a wall meets
+    /// that edge in a concave corner, a ray leaving toward the wall would then start on or
+    /// behind the wall's plane and slip out of a closed room. So `p` is first pulled toward the
+    /// triangle's centroid by 8 rounding bounds (a few 1e-6 of the coordinates), putting it
+    /// inside the triangle again, then offset off the plane by `offset_ray_origin`.
+    #[inline]
+    pub fn spawn(&self, p: Vec3A, err: Vec3A, prim: u32, dir: Vec3A) -> Vec3A {
+        let [a, b, c] = self.verts[prim as usize];
+        let to_centroid = (a + b + c) / 3.0 - p;
+        let distance = to_centroid.length();
+        let e = err.max_element();
+        let pull = (8.0 * e).min(0.5 * distance);
+        let (p, err) = if pull > 0.0 {
+            let q = p + to_centroid * (pull / distance);
+            // The move adds its own rounding: one ulp of each coordinate.
+            (q, err + q.abs() * f32::EPSILON)
+        } else {
+            (p, err)
+        };
+        offset_ray_origin(p, err, self.normals[prim as usize], dir)
+    }
+
     /// Hit point from barycentrics with its absolute error bound (pbrt-v4 §6.8.5):
     /// |error| ≤ γ(7)·(|b0·p0| + |b1·p1| + |b2·p2|) per component.
     #[inline]

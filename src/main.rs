@@ -325,11 +325,16 @@ fn describe(scene: &Scene) -> String {
                 format!("point at [{}, {}, {}] m", position.x, position.y, position.z)
             }
         };
+        let distribution = match &l.ies {
+            Some(ies) => format!("ies {}", ies.file.display()),
+            None => l.distribution.describe(),
+        };
         s.push_str(&format!(
-            "  {:<name_w$}  {:>12.6} W  {}  {}\n",
+            "  {:<name_w$}  {:>12.6} W  {:>10.1} lm  {}  {}\n",
             l.name,
             l.power_w,
-            l.distribution.describe(),
+            l.power_w * l.lm_per_w,
+            distribution,
             shape
         ));
     }
@@ -341,6 +346,17 @@ fn describe(scene: &Scene) -> String {
     s.push_str(&format!("effects: {}\n", scene.effects.names().join(", ")));
     if let Some(c) = &scene.camera {
         s.push_str(&format!("camera: {}×{} pixels, fov {}°\n", c.resolution[0], c.resolution[1], c.fov_deg));
+    }
+    for surface in &scene.surfaces {
+        if let Some(m) = &surface.map {
+            s.push_str(&format!("map: {} {}×{} texels\n", surface.name, m.resolution[0], m.resolution[1]));
+        }
+        if let Some((bins, _)) = surface.spectrum_bins {
+            s.push_str(&format!("spectrum: {} in {bins} wavelength bins\n", surface.name));
+        }
+    }
+    for d in &scene.detectors {
+        s.push_str(&format!("detector: farfield {} {}×{} (gamma × C)\n", d.name, d.resolution[0], d.resolution[1]));
     }
     s
 }

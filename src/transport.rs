@@ -7,7 +7,7 @@ use glam::Vec3A;
 
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
-use crate::geometry::{offset_ray_origin, Geometry, RayEnd};
+use crate::geometry::{Geometry, RayEnd};
 use crate::maps::SurfaceMap;
 use crate::material::{albedo, lobe_factor, sample_scatter};
 use crate::photometry;
@@ -330,7 +330,7 @@ impl Kernel<'_> {
                     // Inside is the side opposite the normal.
                     medium = (new_dir.dot(n) < 0.0).then_some(surface);
                 }
-                origin = offset_ray_origin(p, err, n, new_dir);
+                origin = geo.spawn(p, err, hit.prim, new_dir);
                 dir = new_dir;
                 skip = hit.prim;
             }

@@ -8,6 +8,8 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("cornell_box", "spectral", "spectral, diffuse_reflection, camera"),
         ("furnace", "grey", "diffuse_reflection"),
         ("parallel_plates", "grey", ""),
+        ("office", "grey", "diffuse_reflection"),
+        ("luminaire", "grey", ""),
         (
             "glass",
             "spectral",
@@ -17,7 +19,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
     let mut listed: Vec<String> = std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
         .unwrap()
         .filter_map(|e| e.ok()?.path().file_stem().map(|s| s.to_string_lossy().into_owned()))
-        .filter(|s| s != "meshes")
+        .filter(|s| s != "meshes" && s != "luminaires")
         .collect();
     listed.sort();
     let mut names: Vec<&str> = table.iter().map(|t| t.0).collect();

@@ -21,7 +21,7 @@ use super::{
     emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
 use crate::film::FilmBatch;
-use crate::geometry::{offset_ray_origin, RayEnd, NO_PRIM};
+use crate::geometry::{RayEnd, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
 use crate::tally::Counters;
@@ -185,8 +185,7 @@ impl ImageKernel<'_> {
         y0.axis = lp.axis;
         y0.delta = e.is_collimated(light);
         path.push(y0);
-        let origin =
-            if lp.normal == Vec3A::ZERO { lp.point } else { offset_ray_origin(lp.point, lp.err, lp.normal, dir) };
+        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { self.geo().spawn(lp.point, lp.err, lp.prim, dir) };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
             Mode::Importance,
             path,
@@ -293,7 +292,7 @@ impl ImageKernel<'_> {
             if is_dielectric {
                 medium = (new_dir.dot(n) < 0.0).then_some(surface);
             }
-            origin = offset_ray_origin(p, err, n, new_dir);
+            origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
             skip = hit.prim;
         }

@@ -11,7 +11,7 @@ use glam::Vec3A;
 use super::{
     emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
 };
-use crate::geometry::{offset_ray_origin, RayEnd, NO_PRIM};
+use crate::geometry::{RayEnd, NO_PRIM};
 use crate::sampling::Sampler;
 use crate::scene::Material;
 use crate::tally::Counters;
@@ -108,7 +108,7 @@ impl ImageKernel<'_> {
             if is_dielectric {
                 medium = (new_dir.dot(n) < 0.0).then_some(surface);
             }
-            origin = offset_ray_origin(p, err, n, new_dir);
+            origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
             skip = hit.prim;
         }
