@@ -339,8 +339,9 @@ pub fn register_plot_font() {
     });
 }
 
-/// spectrum_<surface>.csv for each surface with `spectrum_bins`: incident flux per wavelength bin
-/// (W, and W/nm over the bin's width), with standard errors.
+/// spectrum_<surface>.csv for each surface with `spectrum_bins`: incident and absorbed flux per
+/// wavelength bin (W, and W/nm over the bin's width), with standard errors. What the surface sends
+/// back out is incident − absorbed.
 pub fn write_spectra(dir: &Path, scene: &Scene, r: &RunResult) -> Result<Vec<PathBuf>, Error> {
     let t = &r.tallies;
     let model = r.transport.error_model();
@@ -350,12 +351,21 @@ pub fn write_spectra(dir: &Path, scene: &Scene, r: &RunResult) -> Result<Vec<Pat
         let Some((bins, first)) = s.spectrum_bins else { continue };
         let width = (hi - lo) / bins as f64;
         let mut text = String::from(
-            "lambda_lo_nm,lambda_hi_nm,incident_w,incident_w_stderr,incident_w_per_nm,incident_w_per_nm_stderr\n",
+            "lambda_lo_nm,lambda_hi_nm,incident_w,incident_w_stderr,incident_w_per_nm,incident_w_per_nm_stderr,\
+             absorbed_w,absorbed_w_stderr,absorbed_w_per_nm,absorbed_w_per_nm_stderr\n",
         );
         for k in 0..bins {
             let (w, se) = t.estimate(&t.spectra, first + k, r.emitted_w, model);
+            let (aw, ase) = t.estimate(&t.spectra_absorbed, first + k, r.emitted_w, model);
             let a = lo + k as f64 * width;
-            text.push_str(&format!("{a},{},{w},{se},{},{}\n", a + width, w / width, se / width));
+            text.push_str(&format!(
+                "{a},{},{w},{se},{},{},{aw},{ase},{},{}\n",
+                a + width,
+                w / width,
+                se / width,
+                aw / width,
+                ase / width
+            ));
         }
         let name = format!("spectrum_{}.csv", crate::maps::file_stem(&s.name));
         written.push(write_atomic(dir, &name, text.as_bytes())?);

@@ -129,8 +129,9 @@ pub struct Tallies {
     /// Weight leaving the scene per far-field bin (W and lm).
     pub farfield: Channel,
     pub farfield_lm: Channel,
-    /// Incident weight per wavelength bin of the surfaces that ask for a spectrum.
+    /// Incident and absorbed weight per wavelength bin of the surfaces that ask for a spectrum.
     pub spectra: Channel,
+    pub spectra_absorbed: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -182,6 +183,7 @@ impl Tallies {
         t.farfield = Channel::new(scene.farfield_bins());
         t.farfield_lm = Channel::new(scene.farfield_bins());
         t.spectra = Channel::new(scene.spectrum_bins());
+        t.spectra_absorbed = Channel::new(scene.spectrum_bins());
         t
     }
 
@@ -197,6 +199,7 @@ impl Tallies {
             farfield: Channel::new(0),
             farfield_lm: Channel::new(0),
             spectra: Channel::new(0),
+            spectra_absorbed: Channel::new(0),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
@@ -218,6 +221,7 @@ impl Tallies {
             (&mut self.farfield, &b.farfield),
             (&mut self.farfield_lm, &b.farfield_lm),
             (&mut self.spectra, &b.spectra),
+            (&mut self.spectra_absorbed, &b.spectra_absorbed),
         ] {
             a.merge(x, b.photons);
         }

@@ -203,6 +203,18 @@ impl Kernel<'_> {
         let spectrum_bins: Vec<Option<(usize, usize)>> = scene.surfaces.iter().map(|s| s.spectrum_bins).collect();
         let has_spectra = spectrum_bins.iter().any(|b| b.is_some());
         let mut spectra = HistoryScores::new(scene.spectrum_bins());
+        let mut spectra_absorbed = HistoryScores::new(scene.spectrum_bins());
+        // Absorbed weight to its surface, and to the surface's wavelength bin when it has one.
+        let absorb =
+            |surface: u32, x: f64, lambda: f64, absorbed: &mut HistoryScores, spectra_absorbed: &mut HistoryScores| {
+                absorbed.add(surface, x);
+                if SPECTRAL && has_spectra {
+                    if let Some((bins, first)) = spectrum_bins[surface as usize] {
+                        let k = (((lambda - range.0) / (range.1 - range.0) * bins as f64) as usize).min(bins - 1);
+                        spectra_absorbed.add((first + k) as u32, x);
+                    }
+                }
+            };
         let (range_lo, range_width) = (range.0, range.1 - range.0);
 
         for photon in 0..count as u32 {
@@ -253,14 +265,14 @@ impl Kernel<'_> {
                         let t = hit.t as f64;
                         let keep = (-alpha.eval(lambda) * t).exp();
                         if EXPECTED && weight >= ROULETTE_WEIGHT {
-                            absorbed.add(m, weight * (1.0 - keep));
+                            absorb(m, weight * (1.0 - keep), lambda, &mut absorbed, &mut spectra_absorbed);
                             weight *= keep;
                             if weight == 0.0 {
                                 // exp(−αt) underflowed: the medium took everything.
                                 break;
                             }
                         } else if s.uniform() >= keep {
-                            absorbed.add(m, weight);
+                            absorb(m, weight, lambda, &mut absorbed, &mut spectra_absorbed);
                             break;
                         }
                         if HERO {
@@ -306,14 +318,14 @@ impl Kernel<'_> {
                 let a = albedo(material, lambda);
                 if EXPECTED && weight >= ROULETTE_WEIGHT {
                     if a < 1.0 {
-                        absorbed.add(surface, weight * (1.0 - a));
+                        absorb(surface, weight * (1.0 - a), lambda, &mut absorbed, &mut spectra_absorbed);
                     }
                     if a <= 0.0 {
                         break;
                     }
                     weight *= a;
                 } else if !(s.uniform() < a) {
-                    absorbed.add(surface, weight);
+                    absorb(surface, weight, lambda, &mut absorbed, &mut spectra_absorbed);
                     break;
                 }
                 out.counters.fresnel_evaluations += is_dielectric as u64;
@@ -349,6 +361,7 @@ impl Kernel<'_> {
             }
             if SPECTRAL && has_spectra {
                 spectra.flush(&mut out.spectra.moments);
+                spectra_absorbed.flush(&mut out.spectra_absorbed.moments);
             }
         }
         out.photons = count;
