@@ -81,6 +81,8 @@ pub struct Geometry {
     /// Unit geometric normal (v1−v0)×(v2−v0).
     pub normals: Vec<Vec3A>,
     pub surface: Vec<u32>,
+    /// Each triangle's index among its own surface's triangles (in the order they were given).
+    pub local: Vec<u32>,
     bvh: Option<Bvh2>,
 }
 
@@ -90,7 +92,7 @@ impl Geometry {
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Self {
         assert_eq!(tris.len(), surface.len());
         if tris.is_empty() {
-            return Geometry { verts: vec![], normals: vec![], surface: vec![], bvh: None };
+            return Geometry { verts: vec![], normals: vec![], surface: vec![], local: vec![], bvh: None };
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
         // Small leaves: with obvhs's default of up to 8 triangles per leaf a Cornell-box ray made
@@ -99,12 +101,23 @@ impl Geometry {
         let mut bvh = build_bvh2(&padded, params, &mut Duration::default());
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
+        // Triangles of one surface are given together, so each one's local index counts up.
+        let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        let local_given: Vec<u32> = surface
+            .iter()
+            .map(|&s| {
+                let k = seen.entry(s).or_insert(0);
+                *k += 1;
+                *k - 1
+            })
+            .collect();
+        let local: Vec<u32> = order.iter().map(|&i| local_given[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
         for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
             *idx = k as u32;
         }
         let normals = verts.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize()).collect();
-        Geometry { verts, normals, surface, bvh: Some(bvh) }
+        Geometry { verts, normals, surface, local, bvh: Some(bvh) }
     }
 
     pub fn len(&self) -> usize {

@@ -10,15 +10,23 @@
 
 use glam::{DVec2, DVec3, Vec3A};
 
+/// How a surface point gets its (u, v).
+#[derive(Clone, Debug)]
+pub enum Mapping {
+    /// The affine frame of a quad or disk: origin (recentred scene coordinates, m) and the dual
+    /// vectors, u = (p − o)·du, v = (p − o)·dv.
+    Planar { origin: Vec3A, du: Vec3A, dv: Vec3A },
+    /// A mesh's texture coordinates per triangle (in the surface's own triangle order),
+    /// interpolated by the hit's barycentrics.
+    Uv(Vec<[glam::Vec2; 3]>),
+}
+
 #[derive(Clone, Debug)]
 pub struct SurfaceMap {
     pub resolution: [usize; 2],
-    /// Frame origin (recentred scene coordinates, m) and the dual vectors: u = (p − o)·du.
-    origin: Vec3A,
-    du: Vec3A,
-    dv: Vec3A,
-    /// |U| and |V|, m: the map's extent along u and v.
-    pub size_m: [f64; 2],
+    pub mapping: Mapping,
+    /// The map's extent along u and v in metres (planar maps); None for texture coordinates.
+    pub size_m: Option<[f64; 2]>,
     /// Area of the surface inside each texel, m², index = j·nu + i (i along u, j along v).
     pub texel_area_m2: Vec<f64>,
     /// First texel of this map in the scene's texel array.
@@ -26,9 +34,9 @@ pub struct SurfaceMap {
 }
 
 impl SurfaceMap {
-    /// The map of a surface made of `tris` (m, the same coordinates as `origin`) over the frame
-    /// (`origin`, `u_edge`, `v_edge`).
-    pub fn new(
+    /// The planar map of a surface made of `tris` (m, the same coordinates as `origin`) over the
+    /// frame (`origin`, `u_edge`, `v_edge`).
+    pub fn planar(
         resolution: [usize; 2],
         origin: DVec3,
         u_edge: DVec3,
@@ -42,49 +50,23 @@ impl SurfaceMap {
         let du = (vv * u_edge - uv * v_edge) / det;
         let dv = (uu * v_edge - uv * u_edge) / det;
         let to_uv = |p: DVec3| DVec2::new((p - origin).dot(du), (p - origin).dot(dv));
-        let [nu, nv] = resolution;
-        let mut texel_area_m2 = vec![0.0; nu * nv];
-        // Each triangle's area splits over the texels by its (u, v) image; in the plane the area
-        // scale is |U × V| per unit of (u, v), i.e. the triangle's area over its (u, v) area.
-        for t in tris {
-            let q = t.map(to_uv);
-            let uv_area = polygon_area(&q);
-            let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
-            if !(uv_area > 0.0) {
-                continue;
-            }
-            let scale = area / uv_area;
-            let (lo, hi) = (q[0].min(q[1]).min(q[2]), q[0].max(q[1]).max(q[2]));
-            let cells = |a: f64, b: f64, n: usize| {
-                let first = ((a * n as f64).floor().max(0.0) as usize).min(n - 1);
-                let last = ((b * n as f64).floor().max(0.0) as usize).min(n - 1);
-                first..=last
-            };
-            for j in cells(lo.y, hi.y, nv) {
-                for i in cells(lo.x, hi.x, nu) {
-                    // Edge texels reach to ±∞ so a surface sticking out of [0, 1]² (a non-planar
-                    // quad's far corner) keeps its area where its arrivals are clamped to.
-                    let edge = |k: usize, n: usize, lo_side: bool| -> f64 {
-                        match (k, lo_side) {
-                            (0, true) => f64::NEG_INFINITY,
-                            (k, false) if k == n - 1 => f64::INFINITY,
-                            (k, true) => k as f64 / n as f64,
-                            (k, false) => (k + 1) as f64 / n as f64,
-                        }
-                    };
-                    let rect = [edge(i, nu, true), edge(i, nu, false), edge(j, nv, true), edge(j, nv, false)];
-                    let clipped = clip_to_rect(&q, rect);
-                    texel_area_m2[j * nu + i] += polygon_area(&clipped) * scale;
-                }
-            }
-        }
+        let uvs: Vec<[DVec2; 3]> = tris.iter().map(|t| t.map(to_uv)).collect();
         SurfaceMap {
             resolution,
-            origin: origin.as_vec3a(),
-            du: du.as_vec3a(),
-            dv: dv.as_vec3a(),
-            size_m: [u_edge.length(), v_edge.length()],
-            texel_area_m2,
+            mapping: Mapping::Planar { origin: origin.as_vec3a(), du: du.as_vec3a(), dv: dv.as_vec3a() },
+            size_m: Some([u_edge.length(), v_edge.length()]),
+            texel_area_m2: texel_areas(resolution, tris, &uvs),
+            offset,
+        }
+    }
+
+    /// The map of a mesh over its texture coordinates `uvs` (one triple per triangle of `tris`).
+    pub fn textured(resolution: [usize; 2], tris: &[[DVec3; 3]], uvs: &[[DVec2; 3]], offset: usize) -> Self {
+        SurfaceMap {
+            resolution,
+            mapping: Mapping::Uv(uvs.iter().map(|t| t.map(|q| q.as_vec2())).collect()),
+            size_m: None,
+            texel_area_m2: texel_areas(resolution, tris, uvs),
             offset,
         }
     }
@@ -93,13 +75,21 @@ impl SurfaceMap {
         self.resolution[0] * self.resolution[1]
     }
 
-    /// Index (in the scene's texel array) of the texel holding surface point `p`.
+    /// Index (in the scene's texel array) of the texel holding surface point `p`, which lies on
+    /// the surface's triangle `local` (its own order) at barycentrics `b`.
     #[inline]
-    pub fn texel_of(&self, p: Vec3A) -> usize {
-        let d = p - self.origin;
+    pub fn texel_of(&self, p: Vec3A, b: [f32; 3], local: u32) -> usize {
+        let (u, v) = match &self.mapping {
+            Mapping::Planar { origin, du, dv } => ((p - *origin).dot(*du), (p - *origin).dot(*dv)),
+            Mapping::Uv(uvs) => {
+                let t = uvs[local as usize];
+                let q = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
+                (q.x, q.y)
+            }
+        };
         let [nu, nv] = self.resolution;
-        let i = ((d.dot(self.du) * nu as f32) as isize).clamp(0, nu as isize - 1) as usize;
-        let j = ((d.dot(self.dv) * nv as f32) as isize).clamp(0, nv as isize - 1) as usize;
+        let i = ((u * nu as f32).floor() as isize).clamp(0, nu as isize - 1) as usize;
+        let j = ((v * nv as f32).floor() as isize).clamp(0, nv as isize - 1) as usize;
         self.offset + j * nu + i
     }
 }
@@ -123,6 +113,45 @@ pub fn frame(shape: &crate::scene::shapes::ShapeSpec) -> Option<[DVec3; 3]> {
     };
     let o_t = t.apply_point(o);
     Some([o_t, t.apply_point(o + u) - o_t, t.apply_point(o + v) - o_t])
+}
+
+/// Area of the surface inside each texel: every triangle's area split over the texels by its
+/// (u, v) image, clipped to each texel (the area scale of an affine map is the triangle's area
+/// over its (u, v) area). Edge texels reach to ±∞, so a surface sticking out of [0, 1]² (a
+/// non-planar quad's far corner, tiled texture coordinates) keeps its area where its arrivals are
+/// clamped to.
+fn texel_areas(resolution: [usize; 2], tris: &[[DVec3; 3]], uvs: &[[DVec2; 3]]) -> Vec<f64> {
+    let [nu, nv] = resolution;
+    let mut texel_area_m2 = vec![0.0; nu * nv];
+    for (t, q) in tris.iter().zip(uvs) {
+        let uv_area = polygon_area(q);
+        let area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length();
+        if !(uv_area > 0.0) {
+            continue;
+        }
+        let scale = area / uv_area;
+        let (lo, hi) = (q[0].min(q[1]).min(q[2]), q[0].max(q[1]).max(q[2]));
+        let cells = |a: f64, b: f64, n: usize| {
+            let first = ((a * n as f64).floor().max(0.0) as usize).min(n - 1);
+            let last = ((b * n as f64).floor().max(0.0) as usize).min(n - 1);
+            first..=last
+        };
+        let edge = |k: usize, n: usize, low_side: bool| -> f64 {
+            match (k, low_side) {
+                (0, true) => f64::NEG_INFINITY,
+                (k, false) if k == n - 1 => f64::INFINITY,
+                (k, true) => k as f64 / n as f64,
+                (k, false) => (k + 1) as f64 / n as f64,
+            }
+        };
+        for j in cells(lo.y, hi.y, nv) {
+            for i in cells(lo.x, hi.x, nu) {
+                let rect = [edge(i, nu, true), edge(i, nu, false), edge(j, nv, true), edge(j, nv, false)];
+                texel_area_m2[j * nu + i] += polygon_area(&clip_to_rect(q, rect)) * scale;
+            }
+        }
+    }
+    texel_area_m2
 }
 
 /// Area of a simple polygon (shoelace), ≥ 0.
@@ -171,7 +200,7 @@ mod tests {
             [[0.5528, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.5592], [0.5496, 0.0, 0.5592]].map(DVec3::from);
         let tris = [[a, b, c], [a, c, d]];
         let area: f64 = tris.iter().map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).sum();
-        let map = SurfaceMap::new([7, 5], a, b - a, d - a, &tris, 0);
+        let map = SurfaceMap::planar([7, 5], a, b - a, d - a, &tris, 0);
         let total: f64 = map.texel_area_m2.iter().sum();
         assert!((total - area).abs() < 1e-12 * area, "{total} vs {area}");
         // An interior texel is exactly |U × V| / (7·5).
@@ -200,7 +229,7 @@ mod tests {
             })
             .collect();
         let tris: Vec<[DVec3; 3]> = (0..256).map(|i| [DVec3::ZERO, ring[i], ring[(i + 1) % 256]]).collect();
-        let map = SurfaceMap::new([8, 8], o, u, v, &tris, 0);
+        let map = SurfaceMap::planar([8, 8], o, u, v, &tris, 0);
         let polygon_area = 0.5 * 256.0 * (2.0 * std::f64::consts::PI / 256.0).sin();
         assert!((map.texel_area_m2.iter().sum::<f64>() - polygon_area).abs() < 1e-12);
         // Corner texels lie outside the disk; a centre texel is full (0.25 × 0.25 m).
@@ -213,7 +242,8 @@ mod tests {
 pub struct MapEstimate {
     pub surface: String,
     pub resolution: [usize; 2],
-    pub size_m: [f64; 2],
+    /// Extent in metres of a planar map; None for a map over texture coordinates.
+    pub size_m: Option<[f64; 2]>,
     pub texel_area_m2: Vec<f64>,
     /// (value, standard error) per texel: incident W and lm.
     pub flux_w: Vec<(f64, f64)>,
@@ -337,7 +367,11 @@ pub fn write_png(
         let top = ev.iter().map(|x| x.0).fold(0.0, f64::max);
         let top = if top > 0.0 { top } else { 1.0 };
         let [nu, nv] = m.resolution;
-        let [su, sv] = m.size_m;
+        let [su, sv] = m.size_m.unwrap_or([1.0, 1.0]);
+        let (x_desc, y_desc) = match m.size_m {
+            Some(_) => ("u (m, along the first edge)", "v (m)"),
+            None => ("u (texture coordinate)", "v (texture coordinate)"),
+        };
         let mut chart = ChartBuilder::on(&left)
             .margin(15)
             .x_label_area_size(45)
@@ -347,8 +381,8 @@ pub fn write_png(
         chart
             .configure_mesh()
             .disable_mesh()
-            .x_desc("u (m, along the first edge)")
-            .y_desc("v (m)")
+            .x_desc(x_desc)
+            .y_desc(y_desc)
             .label_style(("sans-serif", 15))
             .axis_desc_style(("sans-serif", 16))
             .draw()

@@ -288,7 +288,7 @@ impl Kernel<'_> {
                 let (p, err) = geo.hit_point(&hit);
                 if has_maps {
                     if let Some(map) = maps[surface as usize] {
-                        texels.add(map.texel_of(p) as u32, weight);
+                        texels.add(map.texel_of(p, hit.b, geo.local[hit.prim as usize]) as u32, weight);
                     }
                 }
                 if SPECTRAL && has_spectra {

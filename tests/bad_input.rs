@@ -957,3 +957,16 @@ fn ies_with_upward_light_on_an_area_light() {
         &[&at(line_of(&toml, "distribution"), "lights[0].distribution"), "use a point light"],
     );
 }
+
+#[test]
+fn map_on_a_mesh_without_texture_coordinates() {
+    let toml = format!(
+        "{BASE}\n[[surfaces]]\nname = \"tri\"\nmaterial = \"white\"\nshape = {{ type = \"mesh\", file = \"tri.obj\" }}\nmap = {{ resolution = [8, 8] }}\n"
+    );
+    expect_bad(
+        "map-mesh-no-uv",
+        &toml,
+        &[("tri.obj", "v 0 0.5 0\nv 1 0.5 0\nv 0 0.5 1\nf 1 2 3\n")],
+        &["surfaces[1].map", "needs texture coordinates"],
+    );
+}

@@ -363,3 +363,44 @@ fn an_area_light_with_a_cosine_ies_table_lights_like_a_lambertian_one() {
         4.0,
     );
 }
+
+#[test]
+fn a_mesh_maps_over_its_texture_coordinates() {
+    // The plate of the flatness test as an OBJ of four triangles around a centre vertex, with
+    // texture coordinates that turn it a quarter and squeeze it (u runs along y, v along x): the
+    // map must still be flat within noise (χ²), add up to the tally, and cover the plate's area.
+    let dir = std::env::temp_dir().join(format!("photon-uvmesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nv 1 0.5 0\n\
+               vt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nvt 0.5 0.5\n\
+               f 1/1 2/2 5/5\nf 2/2 3/3 5/5\nf 3/3 4/4 5/5\nf 4/4 1/1 5/5\n";
+    std::fs::write(dir.join("plate.obj"), obj).unwrap();
+    let toml = format!(
+        r#"
+        [[surfaces]]
+        name = "plate"
+        material = "absorber"
+        shape = {{ type = "mesh", file = "{}" }}
+        map = {{ resolution = [6, 12] }}
+        [[lights]]
+        name = "sun"
+        shape = {{ type = "quad", corners = [[-1, -1, 1], [-1, 2, 1], [3, 2, 1], [3, -1, 1]] }}
+        power_w = 12
+        distribution = "collimated"
+        "#,
+        dir.join("plate.obj").display()
+    );
+    let (f, maps) = run_maps(&toml, 400_000, 6);
+    let m = &maps[0];
+    assert!(m.size_m.is_none());
+    let area: f64 = m.texel_area_m2.iter().sum();
+    assert!((area - 2.0).abs() < 1e-9, "texel areas add up to {area}");
+    let plate = surface(&f, "plate");
+    let w: f64 = m.flux_w.iter().map(|x| x.0).sum();
+    assert!((w - plate.incident_w).abs() < 1e-9 * plate.incident_w);
+    let e = m.irradiance_w_m2();
+    let chi2: f64 = e.iter().map(|x| ((x.0 - 1.0) / x.1).powi(2)).sum();
+    let (lo, hi) = chi_square_bounds(72.0);
+    assert!(chi2 > lo && chi2 < hi, "χ² {chi2} against 1 W/m² outside [{lo}, {hi}]");
+    let _ = std::fs::remove_dir_all(&dir);
+}

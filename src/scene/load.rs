@@ -62,8 +62,9 @@ struct Entry {
     name: String,
     material: usize,
     shape: ShapeSpec,
-    /// `map = { resolution = [nu, nv] }`: the resolution and the map's frame in scene units.
-    map: Option<([usize; 2], [DVec3; 3])>,
+    /// `map = { resolution = [nu, nv] }`: the resolution and the map's frame in scene units
+    /// (None for a mesh, mapped by its texture coordinates).
+    map: Option<([usize; 2], Option<[DVec3; 3]>)>,
     spectrum_bins: Option<usize>,
     line: usize,
     shape_line: usize,
@@ -135,8 +136,13 @@ impl<'s> Loader<'s> {
                         }
                         Ok([r[0] as usize, r[1] as usize])
                     })?;
-                    let frame = crate::maps::frame(&shape)
-                        .ok_or_else(|| n.err("an irradiance map needs a surface of type \"quad\" or \"disk\""))?;
+                    let frame = crate::maps::frame(&shape);
+                    if frame.is_none() && !matches!(shape, ShapeSpec::Mesh { .. }) {
+                        return Err(n.err(
+                            "an irradiance map needs a surface of type \"quad\" or \"disk\", or a mesh with \
+                             texture coordinates",
+                        ));
+                    }
                     Ok((resolution, frame))
                 })?;
                 Ok(Entry {
@@ -338,8 +344,9 @@ impl<'s> Loader<'s> {
             material: usize,
             tris: Vec<[DVec3; 3]>,
             light: Option<usize>,
-            /// Resolution and frame (m) of its irradiance map.
-            map: Option<([usize; 2], [DVec3; 3])>,
+            /// Resolution and frame (m) of its irradiance map, and a mesh's texture coordinates.
+            map: Option<([usize; 2], Option<[DVec3; 3]>)>,
+            uvs: Option<Vec<[glam::DVec2; 3]>>,
             spectrum_bins: Option<usize>,
             key: String,
             line: usize,
@@ -347,14 +354,23 @@ impl<'s> Loader<'s> {
         let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
-            let t = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
+            let (t, uvs) = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
             let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
+            if let (Some((_, None)), None) = (&e.map, &uvs) {
+                return Err(InputError::new(
+                    self.src.file,
+                    &child_path(&index_path("surfaces", i), "map"),
+                    Some(e.shape_line),
+                    "an irradiance map over a mesh needs texture coordinates (`vt`, and `f v/vt`) on every face",
+                ));
+            }
             shaped.push(Shaped {
                 name: e.name.clone(),
                 material: e.material,
                 tris,
                 light: None,
-                map: e.map.map(|(r, f)| (r, f.map(|v| v * unit_m))),
+                map: e.map.map(|(r, f)| (r, f.map(|f| f.map(|v| v * unit_m)))),
+                uvs,
                 spectrum_bins: e.spectrum_bins,
                 key,
                 line: e.shape_line,
@@ -370,7 +386,7 @@ impl<'s> Loader<'s> {
                     point_positions.push(Some((p, axis)));
                 }
                 other => {
-                    let t = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
+                    let (t, _) = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
                     shaped.push(Shaped {
@@ -379,6 +395,7 @@ impl<'s> Loader<'s> {
                         tris,
                         light: Some(i),
                         map: None,
+                        uvs: None,
                         spectrum_bins: None,
                         key,
                         line,
@@ -406,15 +423,24 @@ impl<'s> Loader<'s> {
         let (mut texels, mut spectrum_bins) = (0, 0);
         for sh in shaped {
             let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
-            let kept = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
+            let (kept, kept_index) = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
             let id = surfaces.len();
             let area: f64 = kept.iter().map(|m| 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length()).sum();
             for m in &kept {
                 tris.push(m.map(|v| v.as_vec3a()));
                 tri_surface.push(id as u32);
             }
-            let map = sh.map.map(|(resolution, [o, u, v])| {
-                let map = crate::maps::SurfaceMap::new(resolution, o - origin_m, u, v, &kept, texels);
+            let map = sh.map.map(|(resolution, frame)| {
+                let map = match (frame, &sh.uvs) {
+                    (Some([o, u, v]), _) => {
+                        crate::maps::SurfaceMap::planar(resolution, o - origin_m, u, v, &kept, texels)
+                    }
+                    (None, Some(uvs)) => {
+                        let uvs: Vec<_> = kept_index.iter().map(|&k| uvs[k]).collect();
+                        crate::maps::SurfaceMap::textured(resolution, &kept, &uvs, texels)
+                    }
+                    (None, None) => unreachable!("checked when triangulated"),
+                };
                 texels += map.texels();
                 map
             });
@@ -559,16 +585,17 @@ impl<'s> Loader<'s> {
         key: &str,
         line: usize,
         warnings: &mut Vec<String>,
-    ) -> R<Vec<[DVec3; 3]>> {
+    ) -> R<(Vec<[DVec3; 3]>, Vec<usize>)> {
         let total = tris.len();
-        let kept: Vec<[DVec3; 3]> = tris
+        let (kept_index, kept): (Vec<usize>, Vec<[DVec3; 3]>) = tris
             .into_iter()
-            .filter(|t| {
+            .enumerate()
+            .filter(|(_, t)| {
                 let [a, b, c] = t.map(|v| v.as_vec3a());
                 let n = (b - a).cross(c - a);
                 n.is_finite() && n.length_squared() > 0.0 && n.normalize().is_finite()
             })
-            .collect();
+            .unzip();
         if kept.is_empty() {
             return Err(InputError::new(
                 self.src.file,
@@ -584,7 +611,7 @@ impl<'s> Loader<'s> {
                 total - kept.len()
             ));
         }
-        Ok(kept)
+        Ok((kept, kept_index))
     }
 
     fn unit(&self, root: Table<'s, '_>) -> R<f64> {

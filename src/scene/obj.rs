@@ -1,21 +1,23 @@
-//! A small Wavefront OBJ reader: `v` and `f` statements (polygons fan-triangulated, `v/vt/vn`
-//! and negative indices accepted); everything else is ignored. Written here rather than taken
+//! A small Wavefront OBJ reader: `v`, `vt` and `f` statements (polygons fan-triangulated,
+//! `v/vt/vn` and negative indices accepted); everything else is ignored. Written here rather than taken
 //! from tobj so that every malformed statement is reported with its line number.
 
 use std::path::Path;
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 use crate::error::InputError;
 
 /// Reads the triangles of an OBJ file. Zero-area triangles (repeated or collinear vertices) can
 /// never be hit: each is skipped with a warning naming the file, the line and the face.
-pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<[DVec3; 3]>, InputError> {
+/// Each triangle comes with its corners' texture coordinates when the face gives them (`v/vt`).
+pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 3], Option<[DVec2; 3]>)>, InputError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| InputError::new(path, "", None, format!("cannot read mesh file: {e}")))?;
     let err = |line: usize, m: String| InputError::new(path, "", Some(line), m);
     let mut verts: Vec<DVec3> = Vec::new();
-    let mut tris: Vec<[DVec3; 3]> = Vec::new();
+    let mut texcoords: Vec<DVec2> = Vec::new();
+    let mut tris: Vec<([DVec3; 3], Option<[DVec2; 3]>)> = Vec::new();
     let mut face = 0usize;
     for (i, raw) in text.lines().enumerate() {
         let line_no = i + 1;
@@ -32,10 +34,40 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<[DVec3; 3
                 }
                 verts.push(DVec3::new(xyz[0], xyz[1], xyz[2]));
             }
+            Some("vt") => {
+                let uv: Vec<f64> = words.take(2).map(|w| w.parse::<f64>().unwrap_or(f64::NAN)).collect();
+                if uv.is_empty() || uv.iter().any(|x| !x.is_finite()) {
+                    return Err(err(
+                        line_no,
+                        format!(
+                            "malformed texture coordinate: expected `vt u [v]` with finite numbers, found \"{line}\""
+                        ),
+                    ));
+                }
+                texcoords.push(DVec2::new(uv[0], uv.get(1).copied().unwrap_or(0.0)));
+            }
             Some("f") => {
                 let mut idx = Vec::new();
+                let mut tex: Vec<Option<usize>> = Vec::new();
                 for w in words {
-                    let first = w.split('/').next().unwrap_or("");
+                    let mut parts = w.split('/');
+                    let first = parts.next().unwrap_or("");
+                    let t = match parts.next().filter(|t| !t.is_empty()) {
+                        None => None,
+                        Some(t) => {
+                            let k: i64 =
+                                t.parse().map_err(|_| err(line_no, format!("malformed texture index in \"{w}\"")))?;
+                            let resolved = if k > 0 { k - 1 } else { texcoords.len() as i64 + k };
+                            if k == 0 || resolved < 0 || resolved >= texcoords.len() as i64 {
+                                return Err(err(
+                                    line_no,
+                                    format!("texture index {k} refers to no `vt` ({} defined so far)", texcoords.len()),
+                                ));
+                            }
+                            Some(resolved as usize)
+                        }
+                    };
+                    tex.push(t);
                     let k: i64 = first.parse().map_err(|_| err(line_no, format!("malformed face index \"{w}\"")))?;
                     // OBJ indices are 1-based; negative ones count back from the last vertex.
                     let resolved = if k > 0 { k - 1 } else { verts.len() as i64 + k };
@@ -53,8 +85,12 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<[DVec3; 3
                 face += 1;
                 for j in 1..idx.len() - 1 {
                     let t = [verts[idx[0]], verts[idx[j]], verts[idx[j + 1]]];
+                    let uv = match (tex[0], tex[j], tex[j + 1]) {
+                        (Some(a), Some(b), Some(c)) => Some([texcoords[a], texcoords[b], texcoords[c]]),
+                        _ => None,
+                    };
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
-                        tris.push(t);
+                        tris.push((t, uv));
                     } else {
                         warnings.push(format!(
                             "{}:{line_no}: face {face} has zero area (repeated or collinear vertices); skipped",

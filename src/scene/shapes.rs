@@ -3,7 +3,7 @@
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use glam::{DMat3, DVec3};
+use glam::{DMat3, DVec2, DVec3};
 
 use super::doc::{Node, Source, R};
 use super::obj;
@@ -157,14 +157,16 @@ fn twice_area(t: &[DVec3; 3]) -> f64 {
     (t[1] - t[0]).cross(t[2] - t[0]).length()
 }
 
-/// Triangles of a shape (not a point), transformed, in scene units.
+/// Triangles of a shape (not a point), transformed, in scene units; with their texture
+/// coordinates when the shape is a mesh whose every face has them.
 pub fn triangulate(
     shape: &ShapeSpec,
     src: &Source,
     key: &str,
     line: usize,
     warnings: &mut Vec<String>,
-) -> Result<Vec<[DVec3; 3]>, InputError> {
+) -> Result<(Vec<[DVec3; 3]>, Option<Vec<[DVec2; 3]>>), InputError> {
+    let mut uvs: Option<Vec<[DVec2; 3]>> = None;
     let (raw, transform): (Vec<[DVec3; 3]>, &Transform) = match shape {
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
@@ -211,16 +213,17 @@ pub fn triangulate(
         }
         ShapeSpec::Box { min, max, transform } => (box_triangles(DVec3::from(*min), DVec3::from(*max)), transform),
         ShapeSpec::Mesh { file, key_line, transform } => {
-            let tris = obj::read_obj(file, warnings).map_err(|mut e| {
+            let faces = obj::read_obj(file, warnings).map_err(|mut e| {
                 e.message = format!("{} (mesh named by `{key}` at {}:{key_line})", e.message, src.file.display());
                 e
             })?;
-            (tris, transform)
+            uvs = faces.iter().map(|f| f.1).collect();
+            (faces.into_iter().map(|f| f.0).collect(), transform)
         }
         ShapeSpec::Point { .. } => unreachable!("points are not triangulated"),
     };
     let flip = transform.flips();
-    Ok(raw
+    let tris = raw
         .into_iter()
         .map(|t| {
             let p = t.map(|v| transform.apply_point(v));
@@ -230,7 +233,9 @@ pub fn triangulate(
                 p
             }
         })
-        .collect())
+        .collect();
+    let uvs = uvs.map(|u| u.into_iter().map(|t| if flip { [t[0], t[2], t[1]] } else { t }).collect());
+    Ok((tris, uvs))
 }
 
 /// Axis-aligned box, 12 triangles, normals outward.
