@@ -21,7 +21,7 @@ pub fn gamma(n: i32) -> f32 {
     (n as f32 * e) / (1.0 - n as f32 * e)
 }
 
-/// Share of a shadow segment's length left untested at its far end (see `Geometry::visible`).
+/// Share of a shadow segment's length left untested at each end (see `Geometry::visible`).
 pub const SHADOW_MARGIN: f32 = 1e-5;
 
 /// One end of a shadow segment: a point, its rounding bound, the unit geometric normal of the
@@ -175,7 +175,7 @@ impl Geometry {
     /// The offsets cover only each point's own rounding, while a ray's hit distance errs by up to
     /// ~1e-6 of its length (pbrt-v4 §6.8.4). A long ray ending on a surface near the origin, where
     /// the offset is tiny, could then hit that surface short of its end, so the end's primitive
-    /// is skipped and the segment stops `SHADOW_MARGIN` of its length early (pbrt-v4: 1e-4).
+    /// is skipped and the segment stops `SHADOW_MARGIN` of its length short of each end (pbrt-v4: 1e-4).
     /// Without this, 1 in 1000 lamp-to-block connections in the Cornell box came out occluded one
     /// way and visible the other.
     pub fn visible(&self, a: RayEnd, b: RayEnd) -> bool {
@@ -187,7 +187,9 @@ impl Geometry {
         if !(len > 0.0) {
             return false;
         }
-        self.unoccluded(from, seg / len, len * (1.0 - SHADOW_MARGIN), [a.prim, b.prim])
+        // Trimmed at both ends alike, so that a → b and b → a test the same stretch.
+        let dir = seg / len;
+        self.unoccluded(from + dir * (len * SHADOW_MARGIN), dir, len * (1.0 - 2.0 * SHADOW_MARGIN), [a.prim, b.prim])
     }
 
     /// Origin of a ray leaving primitive `prim` at `p` (error bound `err`) along `dir`. A hit

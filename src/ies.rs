@@ -6,7 +6,9 @@
 //! Sampling: each table cell is cut into SUB × SUB sub-cells whose fluxes ∫ I dΩ are exact for
 //! the bilinear intensity; a direction picks a sub-cell by inverse CDF of those fluxes, then lies
 //! uniformly in solid angle inside it (uniform in cos γ and in C). So the sampled distribution
-//! has exactly the table's flux in every sub-cell, and its pdf is piecewise constant.
+//! has exactly the table's flux in every sub-cell, and its pdf is piecewise constant: within a
+//! sub-cell (a sixteenth of a table cell) the emitted intensity is the sub-cell's mean of the
+//! bilinear one, a difference far below what a goniometer resolves.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -31,9 +33,12 @@ pub struct IesProfile {
     pub rated_lm: Option<f64>,
     /// ∫ I dΩ of the (interpolated) table: the luminaire's flux, lm.
     pub total_lm: f64,
-    /// Sampling grid: sub-cell edges in cos γ... stored as γ (radians) and C (radians).
+    /// Sampling grid: sub-cell edges as γ and C in radians, and the same edges in degrees (the
+    /// table's own grid, so that edges evaluate exactly on tabulated angles).
     sub_gamma: Vec<f64>,
     sub_c: Vec<f64>,
+    sub_gamma_deg: Vec<f64>,
+    sub_c_deg: Vec<f64>,
     /// Cumulative flux share over sub-cells, row-major [c][g], ending at 1.
     cdf: Vec<f64>,
 }
@@ -111,6 +116,9 @@ impl IesProfile {
             }
         };
         let nv = count(n_vertical, nvl, "vertical angles")?;
+        if nv < 2 {
+            return Err(err(nvl, "one vertical angle spans no solid angle: a table needs at least 2".into()));
+        }
         let nh = count(n_horizontal, nhl, "horizontal angles")?;
         if !(multiplier > 0.0) {
             return Err(err(ml, format!("the candela multiplier must be positive, found {multiplier}")));
@@ -118,9 +126,12 @@ impl IesProfile {
         if !(ballast > 0.0) {
             return Err(err(bl, format!("the ballast factor must be positive, found {ballast}")));
         }
-        // LM-63-2002 §5: candela values are multiplied by the multiplier and the ballast factor;
-        // the ballast-lamp factor was "future use" (1) in 2002 and a multiplier before that.
-        let scale = multiplier * ballast * if ballast_lamp > 0.0 { ballast_lamp } else { 1.0 };
+        // Candela values are multiplied by the multiplier and the ballast factor (LM-63-2002 §5.5,
+        // 5.10). The next field is the ballast-lamp photometric factor, a multiplier, only in
+        // LM-63-1986 and -1991 files; LM-63-1995 and -2002 call it "future use" and LM-63-2019
+        // the "file generation type" (codes such as 1.10000), which scale nothing.
+        let ballast_lamp_multiplies = !first_line_names_version(lines.first().copied().unwrap_or(""));
+        let scale = multiplier * ballast * if ballast_lamp_multiplies && ballast_lamp > 0.0 { ballast_lamp } else { 1.0 };
         let mut angles = |n: usize, what: &str| -> Result<(Vec<f64>, usize), InputError> {
             let mut v = Vec::with_capacity(n);
             let mut first_line = 0;
@@ -161,7 +172,18 @@ impl IesProfile {
         let (c_deg, cd) = expand_symmetry(&h_deg, table).map_err(|m| err(hl, m))?;
         let rated_lm = (lumens_per_lamp > 0.0).then_some(lamps * lumens_per_lamp);
         let mut p =
-            IesProfile { gamma_deg, c_deg, cd, rated_lm, total_lm: 0.0, sub_gamma: vec![], sub_c: vec![], cdf: vec![] };
+            IesProfile {
+            gamma_deg,
+            c_deg,
+            cd,
+            rated_lm,
+            total_lm: 0.0,
+            sub_gamma: vec![],
+            sub_c: vec![],
+            sub_gamma_deg: vec![],
+            sub_c_deg: vec![],
+            cdf: vec![],
+        };
         p.build_sampler();
         if !(p.total_lm > 0.0) {
             return Err(err(gl, "the candela table emits no light".into()));
@@ -196,15 +218,15 @@ impl IesProfile {
         let subdivide = |a: &[f64]| -> Vec<f64> {
             let mut v: Vec<f64> = a
                 .windows(2)
-                .flat_map(|w| (0..SUB).map(move |k| (w[0] + (w[1] - w[0]) * k as f64 / SUB as f64).to_radians()))
+                .flat_map(|w| (0..SUB).map(move |k| w[0] + (w[1] - w[0]) * k as f64 / SUB as f64))
                 .collect();
-            v.push(a[a.len() - 1].to_radians());
+            v.push(a[a.len() - 1]);
             v
         };
-        let g =
-            if self.gamma_deg.len() == 1 { vec![self.gamma_deg[0], self.gamma_deg[0]] } else { self.gamma_deg.clone() };
-        self.sub_gamma = subdivide(&g);
-        self.sub_c = subdivide(&self.c_deg);
+        self.sub_gamma_deg = subdivide(&self.gamma_deg);
+        self.sub_c_deg = subdivide(&self.c_deg);
+        self.sub_gamma = self.sub_gamma_deg.iter().map(|d| d.to_radians()).collect();
+        self.sub_c = self.sub_c_deg.iter().map(|d| d.to_radians()).collect();
         let (ng, nc) = (self.sub_gamma.len() - 1, self.sub_c.len() - 1);
         let mut cdf = Vec::with_capacity(ng * nc);
         let mut acc = 0.0;
@@ -216,6 +238,8 @@ impl IesProfile {
         }
         self.total_lm = acc;
         if acc > 0.0 {
+            // acc/acc is exactly 1 in IEEE arithmetic, so from the last lit sub-cell on the cdf
+            // is 1 and no u < 1 picks a dark trailing sub-cell.
             cdf.iter_mut().for_each(|x| *x /= acc);
         }
         self.cdf = cdf;
@@ -229,9 +253,10 @@ impl IesProfile {
         if !(g1 > g0 && c1 > c0) {
             return 0.0;
         }
-        let f = |g: f64, c: f64| self.intensity_cd(g.to_degrees(), c.to_degrees());
-        let a = 0.5 * (f(g0, c0) + f(g0, c1));
-        let b = 0.5 * (f(g1, c0) + f(g1, c1));
+        let (gd, cd) = (&self.sub_gamma_deg, &self.sub_c_deg);
+        let f = |gi: usize, cj: usize| self.intensity_cd(gd[gi], cd[cj]);
+        let a = 0.5 * (f(i, j) + f(i, j + 1));
+        let b = 0.5 * (f(i + 1, j) + f(i + 1, j + 1));
         let d = g1 - g0;
         let j1 = (-d * g1.cos() + g1.sin() - g0.sin()) / d;
         let j0 = (g0.cos() - g1.cos()) - j1;
@@ -272,6 +297,13 @@ impl IesProfile {
             0.0
         }
     }
+}
+
+/// Does the first line name LM-63-1995 or later (`IESNA:LM-63-1995`, `IESNA:LM-63-2002`,
+/// `IESNA:LM-63-2019`)? 1986 files have no such line and 1991 ones say `IESNA91`.
+fn first_line_names_version(line: &str) -> bool {
+    let l = line.trim().to_ascii_uppercase();
+    l.starts_with("IESNA:LM-63-") || l.starts_with("IES:LM-63-")
 }
 
 /// Index i and fraction of `x` between a[i] and a[i+1] (clamped to the ends).
@@ -321,7 +353,9 @@ fn expand_symmetry(h: &[f64], table: Vec<Vec<f64>>) -> Result<(Vec<f64>, Vec<Vec
     let mut full: Vec<f64> = if h.len() == 1 {
         vec![0.0, 360.0]
     } else {
-        h.iter().flat_map(|&a| [a, 180.0 - a, 180.0 + a, 360.0 - a, a - 180.0 + 360.0]).collect()
+        // Every image of a tabulated angle under the symmetries above is a breakpoint of the
+        // expanded table, so interpolation in the full circle matches the file's.
+        h.iter().flat_map(|&a| [a, 180.0 - a, 180.0 + a, 360.0 - a, a + 180.0, 540.0 - a]).collect()
     };
     full.retain(|c| (0.0..=360.0).contains(c));
     full.push(0.0);
@@ -349,11 +383,20 @@ pub struct Frame {
 impl Frame {
     /// `c0` is projected off the nadir; without one, world x (or world y where x is within 25° of
     /// the nadir) is used.
+    /// The loader refuses a `c0` parallel to a light's axis; should one still be (nearly) parallel,
+    /// the default is used rather than a NaN frame.
+    ///
+    /// C increases counterclockwise seen from above the luminaire (from −nadir looking along the
+    /// nadir), as in LM-63 and LM-75: c90 = c0 × nadir. For nadir −z and c0 +x, C90 is +y.
     pub fn new(nadir: Vec3A, c0: Option<Vec3A>) -> Self {
         let nadir = nadir.normalize();
-        let pick = c0.unwrap_or(if nadir.x.abs() < 0.9 { Vec3A::X } else { Vec3A::Y });
-        let c0 = (pick - nadir * nadir.dot(pick)).normalize();
-        Frame { nadir, c0, c90: nadir.cross(c0) }
+        let fallback = if nadir.x.abs() < 0.9 { Vec3A::X } else { Vec3A::Y };
+        let across = |pick: Vec3A| pick - nadir * nadir.dot(pick);
+        let c0 = match c0.map(across) {
+            Some(p) if p.length() > 1e-4 => p.normalize(),
+            _ => across(fallback).normalize(),
+        };
+        Frame { nadir, c0, c90: c0.cross(nadir) }
     }
 
     pub fn direction(&self, gamma: f64, c: f64) -> Vec3A {
@@ -410,5 +453,28 @@ mod tests {
         let share = below as f64 / n as f64;
         let se = (expect * (1.0 - expect) / n as f64).sqrt();
         assert!(((share - expect) / se).abs() < 4.0, "{share} vs {expect}");
+    }
+
+    #[test]
+    fn only_pre_1995_files_scale_by_the_ballast_lamp_field() {
+        // The same table with 1.1 in the ballast-lamp field: a multiplier in a 1986 file (no
+        // version line), "future use" in 2002, the file generation type in 2019.
+        let body = "TILT=NONE\n1 -1 1 3 1 1 2 0 0 0\n1 1.10000 0\n0 90 180\n0\n100 100 100\n";
+        let lm = |header: &str| IesProfile::parse(Path::new("t.ies"), &format!("{header}{body}")).unwrap().total_lm;
+        let plain = 400.0 * PI;
+        assert!((lm("[TEST] 1986\n") - 1.1 * plain).abs() < 1e-9 * plain);
+        for header in ["IESNA:LM-63-1995\n", "IESNA:LM-63-2002\n", "IES:LM-63-2019\n"] {
+            assert!((lm(header) - plain).abs() < 1e-9 * plain, "{header}");
+        }
+    }
+
+    #[test]
+    fn symmetry_about_the_c90_plane_mirrors_every_breakpoint() {
+        // Given for C 90–270 (10, 20, 60, 30 cd at C 90, 180, 225, 270); the plane C90–C270 is a
+        // mirror, so C 315 reads C 225, C 300 reads C 240 (between 60 and 30) and C 45 reads C 135.
+        let p = profile("1 -1 1 2 4 1 2 0 0 0\n1 1 0\n0 90\n90 180 225 270\n10 10\n20 20\n60 60\n30 30\n");
+        assert!((p.intensity_cd(30.0, 315.0) - 60.0).abs() < 1e-12);
+        assert!((p.intensity_cd(30.0, 300.0) - 50.0).abs() < 1e-12);
+        assert!((p.intensity_cd(30.0, 45.0) - 15.0).abs() < 1e-12);
     }
 }

@@ -155,7 +155,7 @@ fn texel_areas(resolution: [usize; 2], tris: &[[DVec3; 3]], uvs: &[[DVec2; 3]]) 
 }
 
 /// Area of a simple polygon (shoelace), ≥ 0.
-fn polygon_area(p: &[DVec2]) -> f64 {
+pub fn polygon_area(p: &[DVec2]) -> f64 {
     let n = p.len();
     if n < 3 {
         return 0.0;

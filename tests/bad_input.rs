@@ -967,6 +967,70 @@ fn map_on_a_mesh_without_texture_coordinates() {
         "map-mesh-no-uv",
         &toml,
         &[("tri.obj", "v 0 0.5 0\nv 1 0.5 0\nv 0 0.5 1\nf 1 2 3\n")],
-        &["surfaces[1].map", "needs texture coordinates"],
+        &[&at(line_of(&toml, "map ="), "surfaces[1].map"), "needs texture coordinates"],
+    );
+}
+
+#[test]
+fn map_on_a_mesh_with_texture_coordinates_of_no_area() {
+    let toml = format!(
+        "{BASE}\n[[surfaces]]\nname = \"tri\"\nmaterial = \"white\"\nshape = {{ type = \"mesh\", file = \"tri.obj\" }}\nmap = {{ resolution = [8, 8] }}\n"
+    );
+    let obj = "v 0 0.5 0\nv 1 0.5 0\nv 0 0.5 1\nvt 0 0\nvt 0.5 0.5\nvt 1 1\nf 1/1 2/2 3/3\n";
+    expect_bad(
+        "map-mesh-flat-uv",
+        &toml,
+        &[("tri.obj", obj)],
+        &[&at(line_of(&toml, "map ="), "surfaces[1].map"), "triangle 0", "enclose no area"],
+    );
+}
+
+#[test]
+fn map_on_a_quad_whose_first_edges_are_parallel() {
+    // Corners listed so that the edges from the first corner to the second and the fourth lie
+    // along one line: the quad is a proper surface but gives the map no second axis.
+    let toml = edit(
+        BASE,
+        "corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }\n",
+        "corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [0, 0, 0.5]] }\nmap = { resolution = [8, 8] }\n",
+    );
+    expect_bad("map-parallel-edges", &toml, &[], &[&at(line_of(&toml, "map ="), "surfaces[0].map"), "parallel"]);
+}
+
+#[test]
+fn names_that_make_the_same_file_name() {
+    let toml = format!("{BASE}{}{}", SECOND_SURFACE.replace("\"wall\"", "\"wall 1\""), SECOND_SURFACE.replace("\"wall\"", "\"wall_1\""));
+    expect_bad(
+        "name-stems",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "\"wall_1\""), "surfaces[2]"), "same output file name \"wall_1\""],
+    );
+}
+
+#[test]
+fn ies_c0_along_the_area_lights_normal() {
+    // The base lamp faces −y; c0 along y has no part across the axis to name C = 0 by.
+    let toml = edit(BASE, "power_w = 10", "distribution = { ies = \"lamp.ies\", c0 = [0, 1, 0] }");
+    expect_bad(
+        "ies-c0-parallel",
+        &toml,
+        &[("lamp.ies", GOOD_IES)],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's axis"],
+    );
+}
+
+#[test]
+fn ies_c0_along_a_point_lights_direction() {
+    let toml = edit(
+        BASE,
+        "shape = { type = \"quad\", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }\npower_w = 10",
+        "shape = { type = \"point\", position = [0.5, 1, 0.5] }\ndirection = [0, -1, 0]\ndistribution = { ies = \"lamp.ies\", c0 = [0, 2, 0] }",
+    );
+    expect_bad(
+        "ies-c0-point",
+        &toml,
+        &[("lamp.ies", GOOD_IES)],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's axis"],
     );
 }

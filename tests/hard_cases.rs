@@ -420,7 +420,7 @@ fn shadow_rays_agree_in_both_directions() {
         let emitter = Emitter::new(&s);
         let mut rng = Sampler::for_batch(17, 0);
         // A surface point hit by a ray from a random lamp point in a random downward direction.
-        let mut surface_point = |rng: &mut Sampler| -> Option<RayEnd> {
+        let surface_point = |rng: &mut Sampler| -> Option<RayEnd> {
             let lp = emitter.sample_point(geo, 0, [rng.uniform(), rng.uniform(), rng.uniform()]);
             let dir = Vec3A::new(
                 (2.0 * rng.uniform() - 1.0) as f32,

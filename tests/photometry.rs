@@ -404,3 +404,28 @@ fn a_mesh_maps_over_its_texture_coordinates() {
     assert!(chi2 > lo && chi2 < hi, "χ² {chi2} against 1 W/m² outside [{lo}, {hi}]");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_c_angle_turns_counterclockwise_seen_from_above() {
+    // LM-63/LM-75: C increases counterclockwise seen from above the luminaire. A lobe tabulated
+    // only at C = 90° (0 < C < 180 after interpolation), aimed down (−z) with C0 along +x, must
+    // light only the +y side: two plates below, on either side of the y = 0 plane. Exact, not
+    // statistical: the −y plate can receive no photon at all.
+    let root = env!("CARGO_MANIFEST_DIR");
+    let plate = |name: &str, y0: f64, y1: f64| {
+        format!(
+            "[[surfaces]]\nname = \"{name}\"\nmaterial = \"absorber\"\n\
+             shape = {{ type = \"quad\", corners = [[-1, {y0}, -1], [1, {y0}, -1], [1, {y1}, -1], [-1, {y1}, -1]] }}\n"
+        )
+    };
+    let toml = format!(
+        "{}{}[[lights]]\nname = \"luminaire\"\nshape = {{ type = \"point\", position = [0, 0, 0] }}\n\
+         direction = [0, 0, -1]\ndistribution = {{ ies = \"{root}/tests/data/ies/c90_lobe.ies\", c0 = [1, 0, 0] }}\n",
+        plate("plus_y", 0.05, 2.0),
+        plate("minus_y", -2.0, -0.05),
+    );
+    let f = run(&toml, 100_000, 5);
+    let (plus, minus) = (surface(&f, "plus_y"), surface(&f, "minus_y"));
+    assert!(plus.incident_w > 0.2 * f.emitted_w, "+y plate got {} of {} W", plus.incident_w, f.emitted_w);
+    assert_eq!(minus.incident_w, 0.0, "light reached the −y side: C turns the wrong way");
+}

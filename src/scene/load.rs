@@ -68,6 +68,7 @@ struct Entry {
     spectrum_bins: Option<usize>,
     line: usize,
     shape_line: usize,
+    map_line: usize,
 }
 
 impl<'s> Loader<'s> {
@@ -95,17 +96,22 @@ impl<'s> Loader<'s> {
         })?;
 
         let mut names: HashMap<String, String> = HashMap::new();
+        // Output files (maps/<name>.exr, spectrum_<name>.csv) use the name made file-safe.
+        let mut stems: HashMap<String, String> = HashMap::new();
         let mut entries: Vec<Entry> = Vec::new();
         let mut check_name = |name: &str, key: &str, node_line: usize| -> R<()> {
+            let error = |m: String| InputError::new(self.src.file, key, Some(node_line), m);
             if let Some(prev) = names.insert(name.to_string(), key.to_string()) {
-                return Err(InputError::new(
-                    self.src.file,
-                    key,
-                    Some(node_line),
-                    format!(
-                        "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
-                    ),
-                ));
+                return Err(error(format!(
+                    "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
+                )));
+            }
+            if let Some(prev) = stems.insert(crate::maps::file_stem(name), name.to_string()) {
+                return Err(error(format!(
+                    "names \"{prev}\" and \"{name}\" give the same output file name \"{}\" (characters other \
+                     than letters, digits, '-' and '_' become '_'): rename one",
+                    crate::maps::file_stem(name)
+                )));
             }
             Ok(())
         };
@@ -143,6 +149,15 @@ impl<'s> Loader<'s> {
                              texture coordinates",
                         ));
                     }
+                    if let Some([_, u, v]) = frame {
+                        // The map's axes are the quad's edges from its first corner: they must span a plane.
+                        if !(u.cross(v).length() > 1e-9 * u.length() * v.length()) {
+                            return Err(n.err(
+                                "the quad's edges from its first corner (to the second and the fourth corner) are \
+                                 parallel, so they span no map: list the corners around the quad",
+                            ));
+                        }
+                    }
                     Ok((resolution, frame))
                 })?;
                 Ok(Entry {
@@ -153,6 +168,7 @@ impl<'s> Loader<'s> {
                     spectrum_bins,
                     line: t.line_of_key("name"),
                     shape_line: t.line_of_key("shape"),
+                    map_line: t.line_of_key("map"),
                 })
             })
         })? {
@@ -360,9 +376,27 @@ impl<'s> Loader<'s> {
                 return Err(InputError::new(
                     self.src.file,
                     &child_path(&index_path("surfaces", i), "map"),
-                    Some(e.shape_line),
+                    Some(e.map_line),
                     "an irradiance map over a mesh needs texture coordinates (`vt`, and `f v/vt`) on every face",
                 ));
+            }
+            if let (Some((_, None)), Some(uvs)) = (&e.map, &uvs) {
+                // A face whose texture coordinates enclose no area has no texels to take its light.
+                let flat = tris.iter().zip(uvs).position(|(t, q)| {
+                    let area = (t[1] - t[0]).cross(t[2] - t[0]).length();
+                    area > 0.0 && !(crate::maps::polygon_area(q) > 0.0)
+                });
+                if let Some(k) = flat {
+                    return Err(InputError::new(
+                        self.src.file,
+                        &child_path(&index_path("surfaces", i), "map"),
+                        Some(e.map_line),
+                        format!(
+                            "triangle {k} (0-based, after splitting faces) of the mesh has texture coordinates that \
+                             enclose no area (repeated or collinear `vt`), so its light cannot be mapped"
+                        ),
+                    ));
+                }
             }
             shaped.push(Shaped {
                 name: e.name.clone(),
@@ -377,12 +411,16 @@ impl<'s> Loader<'s> {
             });
         }
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
-        for (i, spec) in light_specs.iter().enumerate() {
+        for (i, spec) in light_specs.iter_mut().enumerate() {
             let key = child_path(&spec.path, "shape");
             match &spec.shape {
                 ShapeSpec::Point { position, transform } => {
                     let p = transform.apply_point(DVec3::from(*position)) * unit_m;
-                    let axis = spec.axis.map(|a| transform.apply_dir(a)).unwrap_or(DVec3::Z);
+                    let axis = spec.axis.map(|a| transform.apply_dir(a).normalize()).unwrap_or(DVec3::Z);
+                    // The luminaire turns with its light: c0 is rotated like the direction.
+                    if let Some(ies) = &mut spec.ies {
+                        ies.c0 = ies.c0.map(|c| transform.apply_dir(c).normalize());
+                    }
                     point_positions.push(Some((p, axis)));
                 }
                 other => {
@@ -530,6 +568,36 @@ impl<'s> Loader<'s> {
                         ));
                     }
                 }
+            }
+        }
+        // An IES table's C = 0 plane is c0 projected off the light's axis: parallel, it has no
+        // projection. Checked against a point light's direction and each of an area light's normals.
+        for (i, l) in lights.iter().enumerate() {
+            let Some(c0) = l.ies.as_ref().and_then(|ies| ies.c0.map(|c| (c, ies.c0_line))) else { continue };
+            let (c0, c0_line) = c0;
+            let axes: Vec<DVec3> = match l.shape {
+                LightShape::Point { axis, .. } => vec![axis],
+                LightShape::Area { surface } => tris
+                    .iter()
+                    .zip(&tri_surface)
+                    .filter(|(_, &s)| s as usize == surface)
+                    .map(|(t, _)| {
+                        let [a, b, c] = t.map(|v| v.as_dvec3());
+                        (b - a).cross(c - a).normalize()
+                    })
+                    .collect(),
+            };
+            if axes.iter().any(|a| a.cross(c0).length() < 1e-3) {
+                return Err(InputError::new(
+                    self.src.file,
+                    &child_path(&child_path(&index_path("lights", i), "distribution"), "c0"),
+                    Some(c0_line),
+                    format!(
+                        "c0 of light \"{}\" is parallel to the light's axis (the nadir), so it picks no C = 0 \
+                         plane: give a direction across the axis",
+                        l.name
+                    ),
+                ));
             }
         }
         // An optional known answer, for `photon converge` to measure the observed error against.
@@ -787,7 +855,11 @@ impl<'s> Loader<'s> {
                     }
                     Ok(d.normalize())
                 })?;
-                return Ok((Distribution::Ies, Some(IesLight { profile: std::sync::Arc::new(profile), c0, file })));
+                let c0_line = t.line_of_key("c0");
+                return Ok((
+                    Distribution::Ies,
+                    Some(IesLight { profile: std::sync::Arc::new(profile), c0, c0_line, file }),
+                ));
             }
             if t.has("c0") {
                 return Err(t.err_at("c0", "`c0` orients an IES table: it needs `ies = \"file.ies\"`"));
@@ -830,6 +902,13 @@ impl<'s> Loader<'s> {
                 let name = t.str("name")?.unwrap_or_else(|| format!("farfield{}", out.len()));
                 if out.iter().any(|d| d.name == name) {
                     return Err(t.err_at("name", format!("a detector named \"{name}\" already exists")));
+                }
+                let stem = crate::maps::file_stem(&name);
+                if let Some(d) = out.iter().find(|d| crate::maps::file_stem(&d.name) == stem) {
+                    return Err(t.err_at(
+                        "name",
+                        format!("detectors \"{}\" and \"{name}\" would both write farfield_{stem}.csv: rename one", d.name),
+                    ));
                 }
                 let resolution = t.require("resolution", |n| {
                     let r = n.each(|x| x.u64())?;

@@ -133,6 +133,8 @@ pub struct Light {
 pub struct IesLight {
     pub profile: std::sync::Arc<crate::ies::IesProfile>,
     pub c0: Option<DVec3>,
+    /// Line of the `c0` key, for messages.
+    pub c0_line: usize,
     pub file: PathBuf,
 }
 
