@@ -95,7 +95,8 @@ enum Command {
 /// The transport options `run` and `converge` share.
 #[derive(clap::Args)]
 struct TransportArgs {
-    /// Absorption estimator: expected-value weighting or analog survival.
+    /// Absorption estimator: expected-value weighting, analog survival, or auto (the one a pilot
+    /// batch of each predicts to give the tallies the higher figure of merit).
     #[arg(long, value_enum, default_value_t = TransportOptions::default().estimator)]
     estimator: Estimator,
     /// Stratify each batch's emission samples (Latin hypercube).

@@ -98,6 +98,9 @@ pub struct RunInfo {
     pub rays_per_second: f64,
     /// The transport options and whether the image used hero wavelengths.
     pub transport_options: crate::transport::TransportOptions,
+    /// With `--estimator auto`: the pilot's figures for each estimator and the one chosen.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator_pilot: Option<crate::run::EstimatorPilot>,
     pub hero_wavelengths: bool,
     /// What made the image (flux always comes from the particle tracer).
     pub integrator: crate::camera_paths::Integrator,
@@ -182,6 +185,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
             0.0
         },
         transport_options: r.transport,
+        estimator_pilot: r.pilot,
         hero_wavelengths: r.hero,
         integrator: r.integrator,
         mean_scatterings: r.tallies.mean_scatterings().0,
@@ -257,8 +261,12 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
             "image: mean Y {y:.6e} ± {se:.2e} W m^-2 sr^-1 nm^-1; pixel noise {px:.3e} (relative RMS)\n"
         ));
     }
+    let estimator = match &info.estimator_pilot {
+        Some(_) => format!("{:?} estimator (auto)", info.transport_options.estimator).to_lowercase(),
+        None => format!("{:?} estimator", info.transport_options.estimator).to_lowercase(),
+    };
     s.push_str(&format!(
-        "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport), stopped by {:?}\n",
+        "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport, {estimator}), stopped by {:?}\n",
         info.photons, info.wall_seconds, info.photons_per_second, info.threads, info.transport, info.stop_reason
     ));
     s

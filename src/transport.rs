@@ -19,13 +19,16 @@ use crate::tally::{HistoryScores, Tallies};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Estimator {
+    /// Whichever of the two below a pilot batch predicts to give the tallies the higher figure of
+    /// merit in this scene (see `run::choose_estimator`); resolved before any batch of the run.
+    #[default]
+    Auto,
     /// A photon survives a hit with probability equal to the albedo; its whole weight ends in one place.
     Analog,
     /// Expected-value absorption: at each hit the share weight·(1 − albedo) is tallied as absorbed
     /// and the photon carries weight·albedo on. Below `ROULETTE_WEIGHT` it plays Russian roulette
     /// with the albedo as survival probability, so the lost weight is booked as absorbed where it
     /// dies and the ledger stays exact.
-    #[default]
     Expected,
 }
 
@@ -55,7 +58,7 @@ impl TransportOptions {
 
 impl Default for TransportOptions {
     fn default() -> Self {
-        TransportOptions { estimator: Estimator::Expected, stratified: false, hero: true }
+        TransportOptions { estimator: Estimator::Auto, stratified: false, hero: true }
     }
 }
 
@@ -84,7 +87,11 @@ impl Kernel<'_> {
         let flags = Flags {
             spectral: fx.spectral,
             camera: self.camera.is_some(),
-            expected: self.options.estimator == Estimator::Expected,
+            expected: match self.options.estimator {
+                Estimator::Expected => true,
+                Estimator::Analog => false,
+                Estimator::Auto => unreachable!("`auto` is resolved before the run's first batch"),
+            },
             hero: self.uses_hero(),
             dielectric: fx.refraction,
         };

@@ -58,3 +58,65 @@ fn stratified_and_plain_emission_agree_on_the_cornell_box_and_plates() {
         p.incident_w_stderr
     );
 }
+
+/// Runs `toml` with `--estimator auto`; returns the estimator the pilot chose and its figures.
+fn auto_choice(toml: &str, seed: u64, threads: usize) -> photon::run::EstimatorPilot {
+    use photon::run::{apply_options, simulate, RunOptions};
+    let mut s = common::scene(toml);
+    // A run of 32 pilots' worth of photons gets the full-size pilot; its (trivial) accuracy target
+    // stops it after its first few batches.
+    let photons = Some(32 * photon::run::PILOT_PHOTONS);
+    let opts =
+        RunOptions { photons, rel_error: Some(1e9), seed: Some(seed), threads: Some(threads), ..Default::default() };
+    assert_eq!(opts.transport.estimator, Estimator::Auto, "auto is the default");
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    let pilot = r.pilot.expect("auto runs a pilot");
+    assert_eq!(pilot.photons, photon::run::PILOT_PHOTONS);
+    assert_eq!(r.transport.estimator, pilot.chosen);
+    pilot
+}
+
+/// Worst relative variance per photon × rays per photon of a full run with `estimator`: the
+/// pilot's cost, measured independently of it.
+fn full_run_cost(toml: &str, photons: u64, seed: u64, estimator: Estimator) -> f64 {
+    use photon::run::{apply_options, simulate, RunOptions};
+    let mut s = common::scene(toml);
+    let transport = TransportOptions { estimator, stratified: false, hero: true };
+    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    let f = photon::output::flux(&s, &r);
+    let worst = f
+        .surfaces
+        .iter()
+        .flat_map(|r| [(r.incident_w, r.incident_w_stderr), (r.absorbed_w, r.absorbed_w_stderr)])
+        .filter(|(m, _)| *m > 0.0)
+        .map(|(m, s)| (s / m).powi(2) * photons as f64)
+        .fold(0.0, f64::max);
+    let c = r.tallies.counters;
+    worst * (c.rays + c.shadow_rays) as f64 / photons as f64
+}
+
+#[test]
+fn auto_picks_expected_value_absorption_in_the_furnace_and_analog_in_the_open_cornell_box() {
+    // The furnace (closed sphere, ρ = 0.9): expected-value absorption costs ~3× the rays but cuts
+    // the worst tally's variance ~100×; the pilot must see it, at any seed or thread count.
+    let furnace = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace.toml")).unwrap();
+    for (seed, threads) in [(1, 2), (2, 1)] {
+        let p = auto_choice(&furnace, seed, threads);
+        assert_eq!(p.chosen, Estimator::Expected, "furnace, seed {seed}: {p:?}");
+        let (a, e) = (p.analog.unwrap(), p.expected.unwrap());
+        assert!(a.cost > 10.0 * e.cost, "{p:?}");
+    }
+    // Independent full runs confirm the verdict by a wide margin (the pilots saw ~30×).
+    let (analog, expected) =
+        (full_run_cost(&furnace, 100_000, 7, Estimator::Analog), full_run_cost(&furnace, 100_000, 8, Estimator::Expected));
+    assert!(analog > 10.0 * expected, "full runs: analog {analog} vs expected {expected}");
+    // The Cornell box, open and darker, where analog photons' short paths win (README table:
+    // analog's worst-tally FOM 1.1–1.35× and image FOM 1.6–1.9× expected's).
+    for seed in [1, 2, 3] {
+        let p = auto_choice(&cornell_toml(), seed, 2);
+        assert_eq!(p.chosen, Estimator::Analog, "Cornell box, seed {seed}: {p:?}");
+    }
+}
