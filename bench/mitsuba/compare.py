@@ -17,7 +17,7 @@ blocks and the measured spectra in spectra/:
 Mitsuba's ptracer traces spp·width·height light paths for a sample count spp (AdjointIntegrator::
 render: samples_per_pass = width·height·spp, one `sample()` = one emitted light path plus one
 emitter-to-camera connection); photon is run with --photons equal to that count, with its defaults
-and with `--estimator analog`. These equal-light-path runs alternate, `--repeats` times, and each
+and with `--estimator expected`. These equal-light-path runs alternate, `--repeats` times, and each
 keeps its fastest (the machine may be shared). Then photon runs again with `--time` set to the
 fastest Mitsuba's time: the equal-time comparison is measured, and also predicted from each
 equal-path run (noise variance ∝ 1/time).
@@ -206,9 +206,9 @@ def read_exr_rgb(mi, path: Path) -> np.ndarray:
     return arr[..., idx].astype(np.float64), (arr[..., names.index("Y_var")].astype(np.float64) if "Y_var" in names else None)
 
 
-# photon configurations: its defaults, and analog absorption (fewer scatterings per photon, so more
-# photons per second but more noise per photon).
-PHOTON_CONFIGS = {"default": [], "--estimator analog": ["--estimator", "analog"]}
+# photon configurations: its defaults (`--estimator auto` picks analog survival in this box), and
+# expected-value absorption (more scatterings per photon: fewer photons per second, less noise each).
+PHOTON_CONFIGS = {"default": [], "--estimator expected": ["--estimator", "expected"]}
 
 
 def run_photon(binary: Path, out: Path, photons: int | None, seed: int, time_s: float | None = None,
@@ -427,7 +427,7 @@ def main() -> int:
             best[key] = run
 
     def photon_dir(cfg: str, suffix: str = "") -> Path:
-        return args.out / ("photon" + ("" if cfg == "default" else "_analog") + suffix)
+        return args.out / ("photon" + ("" if cfg == "default" else "_expected") + suffix)
 
     for rep in range(args.repeats):
         for cfg, extra in PHOTON_CONFIGS.items():
@@ -501,8 +501,8 @@ def main() -> int:
     default_binary = args.photon.resolve() == (ROOT / "target" / "release" / "photon").resolve()
     photon_rev = f" (commit {os.environ['PHOTON_REV']})" if default_binary and os.environ.get("PHOTON_REV") else ""
     notes = [
-        f"photon {ref_info['version']}{photon_rev}: `photon run` with its defaults (hero wavelengths, expected-value absorption "
-        "with albedo roulette), and with `--estimator analog` (a photon survives a hit with probability = albedo); "
+        f"photon {ref_info['version']}{photon_rev}: `photon run` with its defaults (hero wavelengths, `--estimator auto`, "
+        "which picks analog survival here), and with `--estimator expected` (expected-value absorption with albedo roulette); "
         f"Mitsuba {mi.__version__} `ptracer`, max_depth {args.max_depth}, rr_depth 5, independent sampler, box filter.",
         "seconds: photon's `wall_seconds` (tracing only) and Mitsuba's `mi.render` wall time; CPU-s: the whole "
         "photon process, and the Python process during `mi.render`.",
@@ -543,7 +543,7 @@ def main() -> int:
     exposure = 0.18 / float(np.exp(np.mean(np.log(ref[keep & (ref > 0)]))))
     write_png(args.out / "reference.png", ref_rgb, exposure)
     write_png(args.out / "photon.png", photon_rgb["default"], exposure)
-    write_png(args.out / "photon_analog.png", photon_rgb["--estimator analog"], exposure)
+    write_png(args.out / "photon_expected.png", photon_rgb["--estimator expected"], exposure)
     write_png(args.out / "photon_equal_time.png", photon_rgb["equal_time"], exposure)
     for m in mitsuba_runs:
         write_png(args.out / f"mitsuba_{m.variant}.png", best[m.variant]["rgb"] * m.scale, exposure)
