@@ -37,6 +37,7 @@ use std::time::{Duration, Instant};
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
 use photon::run::{apply_options, simulate, RunOptions, RunResult};
 use photon::scene::{load, load_str, Scene};
+use photon::transport::{Estimator, TransportOptions};
 
 const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
 
@@ -66,6 +67,9 @@ impl Case {
             seed: Some(1),
             threads: Some(threads),
             no_image,
+            // One estimator for every case, so that ratios compare the same work (`auto` would
+            // pick analog in the Cornell box and expected-value absorption in the furnace).
+            transport: TransportOptions { estimator: Estimator::Expected, ..TransportOptions::default() },
             ..RunOptions::default()
         };
         let chosen = apply_options(&mut scene, &opts).expect("bench options");
