@@ -253,7 +253,7 @@ impl Emitter {
                 let prim = prims[pick.sample(u[0])];
                 let b = uniform_triangle(u[1] as f32, u[2] as f32);
                 let (point, err) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b });
-                let normal = geo.normals[prim as usize];
+                let normal = geo.normal(prim as usize);
                 LightPoint { point, err, normal, prim, axis: normal }
             }
             Origin::Point { position, axis } => {

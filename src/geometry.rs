@@ -77,11 +77,40 @@ impl Boundable for PaddedTriangle {
     }
 }
 
+/// What a hit on a triangle reads, in one 64-byte cache line: its vertices, its unit normal and
+/// its surface. In a million-triangle mesh every hit is a cache miss; one line per triangle
+/// makes it one miss, not one per table (vertices, normals, surfaces).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct PackedTriangle {
+    a: [f32; 3],
+    surface: u32,
+    b: [f32; 3],
+    _pad_b: u32,
+    c: [f32; 3],
+    _pad_c: u32,
+    normal: [f32; 3],
+    _pad_n: u32,
+}
+
+impl PackedTriangle {
+    fn new(v: &[Vec3A; 3], surface: u32) -> Self {
+        let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize().to_array();
+        let [a, b, c] = v.map(|p| p.to_array());
+        PackedTriangle { a, surface, b, _pad_b: 0, c, _pad_c: 0, normal, _pad_n: 0 }
+    }
+
+    #[inline(always)]
+    fn verts(&self) -> [Vec3A; 3] {
+        [Vec3A::from_array(self.a), Vec3A::from_array(self.b), Vec3A::from_array(self.c)]
+    }
+}
+
 /// All triangles of a scene in BVH order, each knowing its surface.
 pub struct Geometry {
-    pub verts: Vec<[Vec3A; 3]>,
-    /// Unit geometric normal (v1−v0)×(v2−v0).
-    pub normals: Vec<Vec3A>,
+    /// Each triangle's vertices, normal and surface, one cache line each.
+    tris: Vec<PackedTriangle>,
+    /// Each triangle's surface (also inside `tris`; this copy serves whole-scene scans).
     pub surface: Vec<u32>,
     /// Each triangle's index among its own surface's triangles (in the order they were given).
     pub local: Vec<u32>,
@@ -94,7 +123,7 @@ impl Geometry {
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Self {
         assert_eq!(tris.len(), surface.len());
         if tris.is_empty() {
-            return Geometry { verts: vec![], normals: vec![], surface: vec![], local: vec![], bvh: None };
+            return Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None };
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
         // An 8-wide BVH with quantised child boxes (obvhs CWBVH): a third of the binary BVH's
@@ -121,20 +150,38 @@ impl Geometry {
         for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
             *idx = k as u32;
         }
-        let normals = verts.iter().map(|t| (t[1] - t[0]).cross(t[2] - t[0]).normalize()).collect();
-        Geometry { verts, normals, surface, local, bvh: Some(bvh) }
+        let tris = verts.iter().zip(&surface).map(|(v, &s)| PackedTriangle::new(v, s)).collect();
+        Geometry { tris, surface, local, bvh: Some(bvh) }
     }
 
     pub fn len(&self) -> usize {
-        self.verts.len()
+        self.tris.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.verts.is_empty()
+        self.tris.is_empty()
+    }
+
+    /// The vertices of triangle `prim`.
+    #[inline(always)]
+    pub fn verts(&self, prim: usize) -> [Vec3A; 3] {
+        self.tris[prim].verts()
+    }
+
+    /// Unit geometric normal (v1−v0)×(v2−v0) of triangle `prim`.
+    #[inline(always)]
+    pub fn normal(&self, prim: usize) -> Vec3A {
+        Vec3A::from_array(self.tris[prim].normal)
+    }
+
+    /// The surface that triangle `prim` belongs to.
+    #[inline(always)]
+    pub fn surface_of(&self, prim: usize) -> u32 {
+        self.tris[prim].surface
     }
 
     pub fn area(&self, prim: usize) -> f64 {
-        let [a, b, c] = self.verts[prim].map(|v| v.as_dvec3());
+        let [a, b, c] = self.verts(prim).map(|v| v.as_dvec3());
         0.5 * (b - a).cross(c - a).length()
     }
 
@@ -150,7 +197,7 @@ impl Geometry {
         obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
             let id = state.primitive_id;
             if id != skip {
-                if let Some((t, b)) = intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts[id as usize]) {
+                if let Some((t, b)) = intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)) {
                     if t < ray.tmax {
                         ray.tmax = t;
                         best = Some(Hit { t, prim: id, b });
@@ -174,7 +221,7 @@ impl Geometry {
         obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
             let id = state.primitive_id;
             if !skip.contains(&id)
-                && intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts[id as usize]).is_some()
+                && intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)).is_some()
             {
                 blocked = true;
                 break;
@@ -216,8 +263,8 @@ impl Geometry {
             while prims != 0 {
                 let k = node.primitive_base_idx as usize + prims.trailing_zeros() as usize;
                 prims &= prims - 1;
-                if let Some(t) = self.verts.get(k) {
-                    line(t as *const [Vec3A; 3] as *const i8, std::mem::size_of::<[Vec3A; 3]>());
+                if let Some(t) = self.tris.get(k) {
+                    line(t as *const PackedTriangle as *const i8, std::mem::size_of::<PackedTriangle>());
                 }
             }
         }
@@ -253,7 +300,7 @@ impl Geometry {
     /// inside the triangle again, then offset off the plane by `offset_ray_origin`.
     #[inline]
     pub fn spawn(&self, p: Vec3A, err: Vec3A, prim: u32, dir: Vec3A) -> Vec3A {
-        let [a, b, c] = self.verts[prim as usize];
+        let [a, b, c] = self.verts(prim as usize);
         let to_centroid = (a + b + c) / 3.0 - p;
         let distance = to_centroid.length();
         let e = err.max_element();
@@ -265,14 +312,14 @@ impl Geometry {
         } else {
             (p, err)
         };
-        offset_ray_origin(p, err, self.normals[prim as usize], dir)
+        offset_ray_origin(p, err, self.normal(prim as usize), dir)
     }
 
     /// Hit point from barycentrics with its absolute error bound (pbrt-v4 §6.8.5):
     /// |error| ≤ γ(7)·(|b0·p0| + |b1·p1| + |b2·p2|) per component.
     #[inline]
     pub fn hit_point(&self, hit: &Hit) -> (Vec3A, Vec3A) {
-        let [p0, p1, p2] = self.verts[hit.prim as usize];
+        let [p0, p1, p2] = self.verts(hit.prim as usize);
         let [b0, b1, b2] = hit.b;
         let p = b0 * p0 + b1 * p1 + b2 * p2;
         let err = gamma(7) * ((b0 * p0).abs() + (b1 * p1).abs() + (b2 * p2).abs());
@@ -578,12 +625,12 @@ mod tests {
                 Vec3A::new(0.2, 1.0, 0.7) * scale + Vec3A::splat(scale),
             ];
             let geo = Geometry::build(vec![tri], vec![0]);
-            let n = geo.normals[0];
+            let n = geo.normal(0);
             let hit = Hit { t: 1.0, prim: 0, b: [0.3, 0.3, 0.4] };
             let (p, err) = geo.hit_point(&hit);
             for dir in [n, -n] {
                 let o = offset_ray_origin(p, err, n, dir);
-                let side = (o - geo.verts[0][0]).as_dvec3().dot(n.as_dvec3());
+                let side = (o - geo.verts(0)[0]).as_dvec3().dot(n.as_dvec3());
                 assert!(side * dir.dot(n) as f64 > 0.0, "offset origin on the wrong side at scale {scale}");
             }
         }

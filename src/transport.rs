@@ -255,9 +255,9 @@ impl Kernel<'_> {
                     break;
                 };
                 let prim = hit.prim as usize;
-                let surface = geo.surface[prim];
+                let surface = geo.surface_of(prim);
                 let material = materials[surface as usize];
-                let n = geo.normals[prim];
+                let n = geo.normal(prim);
                 // Without dielectrics in the scene, no refraction, Fresnel or media code is compiled in.
                 let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
 

@@ -180,7 +180,7 @@ fn grazing_beam_at_89_9_degrees_hits_the_plate_exactly_once() {
     );
     // Check the beam really points along d (front normal = (b−a)×(c−a)).
     let s = scene(&toml);
-    let n = s.geometry.normals[s.geometry.surface.iter().position(|&x| x == 1).unwrap()];
+    let n = s.geometry.normal(s.geometry.surface.iter().position(|&x| x == 1).unwrap());
     assert!((n.x as f64 - d[0]).abs() < 1e-5 && (n.y as f64 - d[1]).abs() < 1e-5, "beam normal {n}");
     // Analog: a photon scatters with probability ρ.
     let (s, r) = run_scene_with(s, 200_000, 3, common::ANALOG);
@@ -431,7 +431,7 @@ fn shadow_rays_agree_in_both_directions() {
             let hit =
                 geo.intersect(offset_ray_origin(lp.point, lp.err, lp.normal, dir), dir, f32::INFINITY, lp.prim)?;
             let (p, err) = geo.hit_point(&hit);
-            Some(RayEnd { p, err, n: geo.normals[hit.prim as usize], prim: hit.prim })
+            Some(RayEnd { p, err, n: geo.normal(hit.prim as usize), prim: hit.prim })
         };
         let (mut pairs, mut visible, mut mismatches) = (0u64, 0u64, 0u64);
         for _ in 0..300_000 {

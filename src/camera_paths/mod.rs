@@ -431,9 +431,9 @@ impl<'a> ImageKernel<'a> {
     ) -> Arrival<'_> {
         let geo = self.geo();
         let prim = hit.prim as usize;
-        let surface = geo.surface[prim];
+        let surface = geo.surface_of(prim);
         let material = self.materials[surface as usize];
-        let n = geo.normals[prim];
+        let n = geo.normal(prim);
         let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
         if DIELECTRIC {
             let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
