@@ -507,6 +507,15 @@ fn summary(cases: &[Case], reps: usize) {
         "Fresnel evaluations in the scenes without dielectrics: {total} ({})",
         others.iter().map(|(c, _)| c.name).collect::<Vec<_>>().join(", ")
     );
+    println!(
+        "Wavelengths sampled per photon: {}",
+        cases
+            .iter()
+            .zip(&m)
+            .map(|(c, x)| format!("{} {}", c.name, x.per_photon(x.result.tallies.counters.wavelength_samples)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
 }
 
 fn verdict(ok: bool) -> &'static str {

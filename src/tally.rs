@@ -160,6 +160,9 @@ pub struct Counters {
     pub shadow_rays: u64,
     /// Fresnel terms evaluated (one per dielectric hit).
     pub fresnel_evaluations: u64,
+    /// Wavelengths drawn from a light's spectrum at emission (one per photon in spectral
+    /// transport; none in grey transport, which carries no wavelength).
+    pub wavelength_samples: u64,
     /// Splats that reached the film.
     pub splats: u64,
     /// Seconds the batches took to trace, summed over batches (thread time, not wall time).
@@ -171,6 +174,7 @@ impl Counters {
         self.rays += o.rays;
         self.shadow_rays += o.shadow_rays;
         self.fresnel_evaluations += o.fresnel_evaluations;
+        self.wavelength_samples += o.wavelength_samples;
         self.splats += o.splats;
         self.trace_seconds += o.trace_seconds;
     }

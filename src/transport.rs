@@ -231,6 +231,8 @@ impl Kernel<'_> {
             };
             let birth = self.emitter.emit::<SPECTRAL>(geo, &u);
             let lambda = birth.lambda_nm;
+            // Counted from what emission returned (grey births carry NaN), not from the flag.
+            out.counters.wavelength_samples += lambda.is_finite() as u64;
             let mut hero = if HERO { Hero::new(self.emitter, &birth, range) } else { Hero::default() };
             let mut weight = 1.0f64;
             if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {

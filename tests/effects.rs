@@ -64,3 +64,25 @@ fn effects_follow_the_materials_not_the_file_layout() {
     );
     assert_eq!(fx("type = \"absorber\""), "");
 }
+
+#[test]
+fn each_bundled_scene_does_only_the_work_its_effects_call_for() {
+    // Shown by counters, not by belief: a grey scene draws no wavelength, a scene without
+    // dielectrics evaluates no Fresnel term, a scene without a camera casts no shadow ray toward
+    // one and splats nothing; and each effect a scene has does run.
+    use photon::run::{apply_options, simulate, RunOptions};
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
+    for scene in ["cornell_box", "furnace", "parallel_plates", "office", "luminaire", "glass"] {
+        let mut s = photon::scene::load(std::path::Path::new(&format!("{dir}/{scene}.toml"))).unwrap();
+        let photons = 20_000;
+        let opts = RunOptions { photons: Some(photons), threads: Some(2), ..Default::default() };
+        let chosen = apply_options(&mut s, &opts).unwrap();
+        let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+        let c = r.tallies.counters;
+        let fx = &s.effects;
+        assert_eq!(c.wavelength_samples, if fx.spectral { photons } else { 0 }, "{scene}: wavelengths");
+        assert_eq!(c.fresnel_evaluations > 0, fx.refraction, "{scene}: {} Fresnel terms", c.fresnel_evaluations);
+        assert_eq!(c.shadow_rays > 0, fx.camera, "{scene}: {} shadow rays", c.shadow_rays);
+        assert_eq!(c.splats > 0, fx.camera, "{scene}: {} splats", c.splats);
+    }
+}
