@@ -4,12 +4,12 @@
 
 use std::time::Duration;
 
-use glam::Vec3A;
+// `UVec2` is named, unqualified, inside obvhs's `traverse!` macro.
+use glam::{UVec2, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
-use glam::UVec2;
 use obvhs::ray::Ray;
 use obvhs::{Boundable, BvhBuildParams};
 
@@ -133,6 +133,11 @@ impl Geometry {
         // with 2, and faster than with 1.
         let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
         let mut bvh = build_cwbvh(&padded, params, &mut Duration::default());
+        // The traversal's stack holds 32 node groups and drops pushes beyond that (silently
+        // skipping subtrees), so a deeper tree must not be traced. PLOC trees of real scenes are
+        // ~10 levels deep; only a pathological input could get there.
+        let depth = cwbvh_depth(&bvh);
+        assert!(depth < 32, "BVH of {} triangles is {depth} levels deep; the traversal handles 31", tris.len());
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         // Triangles of one surface are given together, so each one's local index counts up.
@@ -218,15 +223,18 @@ impl Geometry {
         let mut state = bvh.new_traversal(dir);
         let mut node;
         let mut blocked = false;
-        obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
-            let id = state.primitive_id;
-            if !skip.contains(&id)
-                && intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)).is_some()
-            {
-                blocked = true;
-                break;
-            }
-        });
+        // The macro's `break` would leave only the current leaf group; the label ends the traversal.
+        'traversal: {
+            obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
+                let id = state.primitive_id;
+                if !skip.contains(&id)
+                    && intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)).is_some()
+                {
+                    blocked = true;
+                    break 'traversal;
+                }
+            });
+        }
         !blocked
     }
 
@@ -240,11 +248,12 @@ impl Geometry {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            // Every 64-byte line of an object (a node is 80 bytes; a triangle one aligned line).
             let line = |p: *const i8, bytes: usize| {
-                // SAFETY: prefetching is only a hint; callers pass addresses inside live slices.
-                unsafe {
-                    _mm_prefetch(p, _MM_HINT_T0);
-                    _mm_prefetch(p.add(bytes - 1), _MM_HINT_T0);
+                let (first, last) = (p as usize & !63, (p as usize + bytes - 1) & !63);
+                for a in (first..=last).step_by(64) {
+                    // SAFETY: prefetching is only a hint and never faults.
+                    unsafe { _mm_prefetch(a as *const i8, _MM_HINT_T0) };
                 }
             };
             // Hit inner children, as the traversal finds them: bit 24 + (slot ^ octant) of the
@@ -327,7 +336,20 @@ impl Geometry {
     }
 }
 
-/// Which children of a CWBVH node the ray's segment (0, tmax) passes through, as the hit mask
+/// Levels of a CWBVH (the root alone is 1).
+fn cwbvh_depth(bvh: &CwBvh) -> usize {
+    let mut deepest = 0;
+    let mut todo = vec![(0usize, 1usize)];
+    while let Some((n, d)) = todo.pop() {
+        deepest = deepest.max(d);
+        let Some(node) = bvh.nodes.get(n) else { continue };
+        let inner = (node.imask as u32).count_ones() as usize;
+        todo.extend((0..inner).map(|k| (node.child_base_idx as usize + k, d + 1)));
+    }
+    deepest
+}
+
+/// Which children of a CWBVH node the ray's segment [0, tmax] passes through, as the hit mask
 /// obvhs's traversal wants. This is obvhs's SSE node test (`CwBvhNode::intersect_ray_simd`) with
 /// one change: the near clip is 0, not its fixed 1e-4. In our metres that skipped every box
 /// ending within 0.1 mm ahead of the ray's origin, so photons leaving a wall near a corner
@@ -348,8 +370,13 @@ fn intersect_node(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
     hit_mask
 }
 
-/// Bit c set when child c's box (quantised: q·extent + p) meets the ray's (0, tmax). An axis
-/// whose product is NaN (a zero direction component at a box face) leaves the box uncut there.
+/// Bit c set when child c's box (quantised: q·extent + p) meets the ray's [0, tmax]. Which slab
+/// bound is the near one follows the sign of the inverse direction the distances are computed
+/// with, not of the direction: obvhs inverts a component of −0.0 to −1/ε, and testing
+/// `direction < 0` then swapped near and far and culled every box around the ray (half the
+/// photons of a collimated beam whose normal came out as (−0, 1, 0) went through the floor).
+/// A tiny component's inverse is clamped to ±1/ε; that can only make a box look hit, never missed.
+/// A NaN bound (0·∞, kept for safety) leaves the box uncut on that axis.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32 {
@@ -366,9 +393,9 @@ fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32
             let mut near = _mm_setzero_ps();
             let mut far = _mm_set1_ps(ray.tmax);
             for (lo, hi, inv, o, neg) in [
-                (&node.child_min_x, &node.child_max_x, dir_inv.x, orig.x, ray.direction.x < 0.0),
-                (&node.child_min_y, &node.child_max_y, dir_inv.y, orig.y, ray.direction.y < 0.0),
-                (&node.child_min_z, &node.child_max_z, dir_inv.z, orig.z, ray.direction.z < 0.0),
+                (&node.child_min_x, &node.child_max_x, dir_inv.x, orig.x, ray.inv_direction.x < 0.0),
+                (&node.child_min_y, &node.child_max_y, dir_inv.y, orig.y, ray.inv_direction.y < 0.0),
+                (&node.child_min_z, &node.child_max_z, dir_inv.z, orig.z, ray.inv_direction.z < 0.0),
             ] {
                 let (inv, o) = (_mm_set1_ps(inv), _mm_set1_ps(o));
                 let (a, b) = (quad(lo, i), quad(hi, i));
@@ -385,7 +412,7 @@ fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32 {
-    let neg = [ray.direction.x < 0.0, ray.direction.y < 0.0, ray.direction.z < 0.0];
+    let neg = [ray.inv_direction.x < 0.0, ray.inv_direction.y < 0.0, ray.inv_direction.z < 0.0];
     let axes = [
         (&node.child_min_x, &node.child_max_x, dir_inv.x, orig.x),
         (&node.child_min_y, &node.child_max_y, dir_inv.y, orig.y),

@@ -302,7 +302,8 @@ impl IesProfile {
 /// Does the first line name LM-63-1995 or later (`IESNA:LM-63-1995`, `IESNA:LM-63-2002`,
 /// `IESNA:LM-63-2019`)? 1986 files have no such line and 1991 ones say `IESNA91`.
 fn first_line_names_version(line: &str) -> bool {
-    let l = line.trim().to_ascii_uppercase();
+    // A byte-order mark is not whitespace to `trim`.
+    let l = line.trim_start_matches('\u{feff}').trim().to_ascii_uppercase();
     l.starts_with("IESNA:LM-63-") || l.starts_with("IES:LM-63-")
 }
 

@@ -179,13 +179,9 @@ pub fn simulate_observed(
     let start = Instant::now();
     let (transport, pilot) = match opts.transport.estimator {
         Estimator::Auto => {
-            // At most 1/32 of a run's photons per estimator, so that a short run of a costly scene
-            // (albedo near 1: thousands of expected-value bounces per photon) is not all pilot.
-            let open_ended = (opts.rel_error.is_some() || opts.time_s.is_some()) && !scene.simulation.photons_given;
-            let photons =
-                if open_ended { PILOT_PHOTONS } else { (scene.simulation.photons / 32).clamp(1024, PILOT_PHOTONS) };
             let pilot = pool.install(|| {
-                choose_estimator(scene, &emitter, light_camera, opts.transport, rel_error_surfaces, photons)
+                let image = image_kernel.as_ref();
+                choose_estimator(scene, &emitter, light_camera, image, opts.transport, rel_error_surfaces)
             });
             (TransportOptions { estimator: pilot.chosen, ..opts.transport }, Some(pilot))
         }
@@ -332,50 +328,93 @@ pub fn simulate_observed(
     })
 }
 
-/// Photons in the pilot batch that `Estimator::Auto` traces with each estimator (fewer in runs
-/// of under 32 times as many).
+/// Photons that `Estimator::Auto` traces with each estimator, unless `PILOT_MAX_RAYS` comes first.
 pub const PILOT_PHOTONS: u64 = BATCH_PHOTONS;
+/// Rays after which a pilot stops (at a round's end): about half a second on 2 threads, so a
+/// scene of albedo near 1, with thousands of expected-value bounces per photon, pays no more.
+/// The pilot depends on the scene and seed only, never on the run's photon count or time.
+pub const PILOT_MAX_RAYS: u64 = 1_000_000;
+/// Photons per pilot round, cut into `PILOT_PARTS` batches that run in parallel. Fixed, so that
+/// the pilot's numbers do not depend on the thread count.
+const PILOT_ROUND: u64 = 1024;
+const PILOT_PARTS: u64 = 8;
 
 /// What the pilot measured of one estimator: the largest relative variance per photon,
 /// N·(σ/x̄)², over the tallies the run targets, and the rays each photon cost.
-#[derive(Clone, Copy, Debug, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct PilotFigures {
+    /// Photons the pilot traced with this estimator.
+    pub photons: u64,
     pub rel_variance_per_photon: f64,
     pub rays_per_photon: f64,
-    /// Predicted time per unit of accuracy, ∝ 1/FOM: variance per photon × rays per photon.
+    /// Predicted time per unit of accuracy, ∝ 1/FOM: variance per photon × rays per photon
+    /// (the latter including a path or BDPT image's rays per sample).
     pub cost: f64,
 }
 
-#[derive(Clone, Copy, Debug, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct EstimatorPilot {
     pub chosen: Estimator,
-    pub photons: u64,
     pub analog: Option<PilotFigures>,
     pub expected: Option<PilotFigures>,
 }
 
-/// Resolves `Estimator::Auto`: traces one pilot batch of `photons` with each estimator,
-/// on common random numbers (the same batch index, one the run never reaches), and picks the one
-/// with the smaller variance × work, the inverse of the figure of merit with time counted in
-/// rays (closest-hit and shadow) rather than seconds, so the choice depends only on the scene and
+/// Resolves `Estimator::Auto`: traces a pilot with each estimator (rounds of `PILOT_ROUND`
+/// photons until `PILOT_PHOTONS` or `PILOT_MAX_RAYS`), on common random numbers (the same batch
+/// indices, ones the run never reaches), and picks the one with
+/// the smaller variance × work, the inverse of the figure of merit with time counted in rays
+/// (closest-hit and shadow) rather than seconds, so the choice depends only on the scene and
 /// seed. Rays are a fair clock: in the Cornell box a ray, with its share of the photon's other
-/// work, took 370–475 ns under either estimator, with and without the image. The variance is the worst relative one over `surfaces` (incident and absorbed, as
-/// `--rel-error` judges), among tallies both pilots reached. Expected-value absorption wins
-/// closed, bright scenes (the furnace: 30× the FOM); analog survival wins open or dark ones,
-/// where expected-value photons pay for long paths that carry little (the Cornell box).
+/// work, took 370–475 ns under either estimator, with and without the image. The variance is
+/// that of the run's noisiest output: the worst relative one over `surfaces` (incident and
+/// absorbed, as `--rel-error` judges), and the light-traced image's pixel noise where the light
+/// tracer makes one (it is usually far the noisier, so it decides there); a tally
+/// one estimator reached and the other did not counts, for the one that missed it, as if a
+/// single photon had scored (relative variance per photon N). With a path or BDPT image, whose
+/// rays do not depend on the estimator, their number per sample is added to both costs.
+/// Expected-value absorption wins closed, bright scenes (the furnace: 30× the FOM); analog
+/// survival wins open or dark ones, where expected-value photons pay for long paths that carry
+/// little (the Cornell box).
 pub fn choose_estimator(
     scene: &Scene,
     emitter: &Emitter,
     camera: Option<&CameraModel>,
+    image: Option<&ImageKernel>,
     transport: TransportOptions,
     surfaces: &[usize],
-    photons: u64,
 ) -> EstimatorPilot {
+    use rayon::prelude::*;
+    let part = PILOT_ROUND / PILOT_PARTS;
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
-        Kernel { scene, emitter, camera, image: None, options }.trace_batch(u64::MAX, photons).0
+        let kernel = Kernel { scene, emitter, camera, image: None, options };
+        let mut total = Tallies::for_scene(scene);
+        let mut film = camera.map(|c| Film::new(c.width, c.height));
+        let mut round = 0;
+        while total.photons < PILOT_PHOTONS && total.counters.rays + total.counters.shadow_rays < PILOT_MAX_RAYS {
+            let parts: Vec<_> = (0..PILOT_PARTS)
+                .into_par_iter()
+                .map(|k| kernel.trace_batch(u64::MAX - (round * PILOT_PARTS + k), part))
+                .collect();
+            for (t, f) in &parts {
+                total.merge(t);
+                if let (Some(film), Some(f)) = (film.as_mut(), f) {
+                    film.merge(f, t.photons);
+                }
+            }
+            round += 1;
+        }
+        // The light-traced image's relative variance per photon: N × (pixel noise)².
+        let image = film.map(|f| crate::output::pixel_rel_error(&f.image(1.0)).powi(2) * total.photons as f64);
+        (total, image.filter(|v| v.is_finite()))
     };
     let (analog, expected) = rayon::join(|| pilot(Estimator::Analog), || pilot(Estimator::Expected));
+    // The camera integrator's own rays per sample (one sample per photon); batch 0's stream, only counted.
+    let image_rays = image.map_or(0.0, |img| {
+        let mut c = crate::tally::Counters::default();
+        img.trace_batch(0, part, &mut c);
+        (c.rays + c.shadow_rays) as f64 / part as f64
+    });
     let model = transport.error_model();
     let worst = |t: &Tallies, other: &Tallies| -> Option<f64> {
         let mut worst: Option<f64> = None;
@@ -384,18 +423,26 @@ pub fn choose_estimator(
                 (t.incident_estimate(s, 1.0, model), other.incident_estimate(s, 1.0, model)),
                 (t.absorbed_estimate(s, 1.0, model), other.absorbed_estimate(s, 1.0, model)),
             ] {
-                if a.0 > 0.0 && b.0 > 0.0 {
-                    let v = (a.1 / a.0).powi(2) * t.photons as f64;
-                    worst = Some(worst.map_or(v, |w: f64| w.max(v)));
-                }
+                let v = if a.0 > 0.0 {
+                    (a.1 / a.0).powi(2) * t.photons as f64
+                } else if b.0 > 0.0 {
+                    t.photons as f64
+                } else {
+                    continue;
+                };
+                worst = Some(worst.map_or(v, |w: f64| w.max(v)));
             }
         }
         worst
     };
-    let figures = |t: &Tallies, other: &Tallies| {
-        worst(t, other).map(|v| {
-            let rays = (t.counters.rays + t.counters.shadow_rays) as f64 / t.photons as f64;
-            PilotFigures { rel_variance_per_photon: v, rays_per_photon: rays, cost: v * rays }
+    let figures = |(t, image): &(Tallies, Option<f64>), (other, _): &(Tallies, Option<f64>)| {
+        let v = match (worst(t, other), *image) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        };
+        v.map(|v| {
+            let rays = (t.counters.rays + t.counters.shadow_rays) as f64 / t.photons as f64 + image_rays;
+            PilotFigures { photons: t.photons, rel_variance_per_photon: v, rays_per_photon: rays, cost: v * rays }
         })
     };
     let (a, e) = (figures(&analog, &expected), figures(&expected, &analog));
@@ -403,7 +450,7 @@ pub fn choose_estimator(
         (Some(a), Some(e)) if a.cost < e.cost => Estimator::Analog,
         _ => Estimator::Expected,
     };
-    EstimatorPilot { chosen, photons, analog: a, expected: e }
+    EstimatorPilot { chosen, analog: a, expected: e }
 }
 
 fn make_progress(enabled: bool, total: Option<u64>) -> Option<indicatif::ProgressBar> {

@@ -1016,7 +1016,7 @@ fn ies_c0_along_the_area_lights_normal() {
         "ies-c0-parallel",
         &toml,
         &[("lamp.ies", GOOD_IES)],
-        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's axis"],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's normal"],
     );
 }
 
@@ -1031,6 +1031,6 @@ fn ies_c0_along_a_point_lights_direction() {
         "ies-c0-point",
         &toml,
         &[("lamp.ies", GOOD_IES)],
-        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's axis"],
+        &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's direction"],
     );
 }

@@ -448,3 +448,42 @@ fn shadow_rays_agree_in_both_directions() {
         assert_eq!(mismatches, 0, "lift {lift}: {mismatches} of {pairs} pairs disagree");
     }
 }
+
+#[test]
+fn rays_with_negative_zero_direction_components_find_their_hits() {
+    // A direction component of −0.0 (from negating or reflecting an axis-aligned vector) has a
+    // negative inverse in the BVH's slab test; choosing near and far by `direction < 0` culled
+    // every box around such a ray. A floor below a ray pointing straight down, every sign of zero.
+    use glam::Vec3A;
+    use photon::geometry::{Geometry, NO_PRIM};
+    let floor = vec![
+        [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(0.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 1.0)],
+        [Vec3A::new(0.0, 0.0, 0.0), Vec3A::new(1.0, 0.0, 1.0), Vec3A::new(1.0, 0.0, 0.0)],
+    ];
+    let geo = Geometry::build(floor, vec![0, 0]);
+    let origin = Vec3A::new(0.3, 1.0, 0.6);
+    for (x, z) in [(0.0f32, 0.0f32), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0)] {
+        let dir = Vec3A::new(x, -1.0, z);
+        let hit = geo.intersect(origin, dir, f32::INFINITY, NO_PRIM);
+        assert!(hit.is_some_and(|h| (h.t - 1.0).abs() < 1e-6), "direction ({x:?}, -1, {z:?}): {hit:?}");
+        assert!(!geo.unoccluded(origin, dir, 2.0, [NO_PRIM; 2]), "direction ({x:?}, -1, {z:?}) saw through the floor");
+    }
+
+    // End to end: a collimated lamp whose corner order gives one triangle the normal (−0, 1, 0),
+    // aimed at a plate that covers its whole beam. Every photon must arrive (exact, not statistical).
+    let toml = r#"
+        [[surfaces]]
+        name = "plate"
+        material = "absorber"
+        shape = { type = "quad", corners = [[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]] }
+        [[lights]]
+        name = "beam"
+        shape = { type = "quad", corners = [[-0.1, 0, 0.1], [0.1, 0, 0.1], [0.1, 0, -0.1], [-0.1, 0, -0.1]] }
+        power_w = 1
+        distribution = "collimated"
+    "#;
+    let (s, r) = run_scene(scene(toml), 10_000, 1);
+    let f = output::flux(&s, &r);
+    assert_eq!(f.ledger.escaped_w, 0.0, "{} W of the beam went past the plate", f.ledger.escaped_w);
+    assert!((surface(&f, "plate").incident_w - 1.0).abs() < 1e-9);
+}

@@ -382,9 +382,11 @@ impl<'s> Loader<'s> {
             }
             if let (Some((_, None)), Some(uvs)) = (&e.map, &uvs) {
                 // A face whose texture coordinates enclose no area has no texels to take its light.
+                // Relative to the square of the longest UV edge: rounding noise is not an area.
                 let flat = tris.iter().zip(uvs).position(|(t, q)| {
                     let area = (t[1] - t[0]).cross(t[2] - t[0]).length();
-                    area > 0.0 && !(crate::maps::polygon_area(q) > 0.0)
+                    let edge = (q[1] - q[0]).length().max((q[2] - q[1]).length()).max((q[0] - q[2]).length());
+                    area > 0.0 && !(crate::maps::polygon_area(q) > 1e-9 * edge * edge)
                 });
                 if let Some(k) = flat {
                     return Err(InputError::new(
@@ -413,14 +415,16 @@ impl<'s> Loader<'s> {
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
         for (i, spec) in light_specs.iter_mut().enumerate() {
             let key = child_path(&spec.path, "shape");
+            // The luminaire turns with its light: c0 is rotated like the point light's direction
+            // or the area light's normals.
+            let turn = spec.shape.transform().clone();
+            if let Some(ies) = &mut spec.ies {
+                ies.c0 = ies.c0.map(|c| turn.apply_dir(c).normalize());
+            }
             match &spec.shape {
                 ShapeSpec::Point { position, transform } => {
                     let p = transform.apply_point(DVec3::from(*position)) * unit_m;
                     let axis = spec.axis.map(|a| transform.apply_dir(a).normalize()).unwrap_or(DVec3::Z);
-                    // The luminaire turns with its light: c0 is rotated like the direction.
-                    if let Some(ies) = &mut spec.ies {
-                        ies.c0 = ies.c0.map(|c| transform.apply_dir(c).normalize());
-                    }
                     point_positions.push(Some((p, axis)));
                 }
                 other => {
@@ -587,14 +591,21 @@ impl<'s> Loader<'s> {
                     })
                     .collect(),
             };
-            if axes.iter().any(|a| a.cross(c0).length() < 1e-3) {
+            if let Some(k) = axes.iter().position(|a| a.cross(c0).length() < 1e-3) {
+                let whose = match l.shape {
+                    LightShape::Point { .. } => "the light's direction (its nadir)".to_string(),
+                    LightShape::Area { .. } if axes.iter().all(|a| (*a - axes[0]).length() < 1e-9) => {
+                        "the light's normal (its nadir)".to_string()
+                    }
+                    LightShape::Area { .. } => format!("the normal (the nadir) of the light's triangle {k}"),
+                };
                 return Err(InputError::new(
                     self.src.file,
                     &child_path(&child_path(&index_path("lights", i), "distribution"), "c0"),
                     Some(c0_line),
                     format!(
-                        "c0 of light \"{}\" is parallel to the light's axis (the nadir), so it picks no C = 0 \
-                         plane: give a direction across the axis",
+                        "c0 of light \"{}\" is parallel to {whose}, so it picks no C = 0 plane: give a \
+                         direction across the axis",
                         l.name
                     ),
                 ));

@@ -48,6 +48,20 @@ pub enum ShapeSpec {
     Point { position: [f64; 3], transform: Transform },
 }
 
+impl ShapeSpec {
+    /// The shape's `transform` (identity when none was given).
+    pub fn transform(&self) -> &Transform {
+        match self {
+            ShapeSpec::Quad { transform, .. }
+            | ShapeSpec::Disk { transform, .. }
+            | ShapeSpec::Sphere { transform, .. }
+            | ShapeSpec::Box { transform, .. }
+            | ShapeSpec::Mesh { transform, .. }
+            | ShapeSpec::Point { transform, .. } => transform,
+        }
+    }
+}
+
 pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
     let t = n.table()?;
     let kind = t.req_str("type")?;

@@ -15,9 +15,14 @@ pub fn scene(toml: &str) -> Scene {
     load_str(Path::new("tests/inline.toml"), toml).unwrap_or_else(|e| panic!("scene should load: {e}"))
 }
 
-/// Runs `toml` with `photons` photons and `seed` on 2 threads, default transport; returns the flux table.
+/// Expected-value absorption, fixed: with the default (`auto`) a pilot would choose per scene,
+/// and which estimator a test exercises could change unnoticed.
+pub const EXPECTED: TransportOptions = TransportOptions { estimator: Estimator::Expected, stratified: false, hero: true };
+
+/// Runs `toml` with `photons` photons and `seed` on 2 threads, expected-value absorption; returns
+/// the flux table.
 pub fn run(toml: &str, photons: u64, seed: u64) -> Flux {
-    run_with(toml, photons, seed, TransportOptions::default())
+    run_with(toml, photons, seed, EXPECTED)
 }
 
 /// The same with the given transport options.
