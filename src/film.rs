@@ -250,23 +250,26 @@ impl Film {
         }
         let sub = FILM_BATCH_PHOTONS as u64;
         let mut splats = b.splats.iter().peekable();
+        // Plain slices: this loop runs once per splat (millions per second) on the merging thread.
+        let xyz_sum = self.xyz_sum.as_slice_mut().expect("the film's XYZ sums are one standard-layout block");
+        let scratch_y = &mut self.scratch_y[..];
         for k in 0..photons.div_ceil(sub) {
             let n = sub.min(photons - k * sub) as f64;
             let mut image_y = 0.0;
             while let Some(sp) = splats.next_if(|sp| (sp.photon as u64) < (k + 1) * sub) {
                 let p = sp.pixel as usize;
-                let mut acc = self.xyz_sum.row_mut(p);
+                let acc = &mut xyz_sum[3 * p..3 * p + 3];
                 acc[0] += sp.xyz[0] as f64;
                 acc[1] += sp.xyz[1] as f64;
                 acc[2] += sp.xyz[2] as f64;
-                if self.scratch_y[p] == 0.0 {
+                if scratch_y[p] == 0.0 {
                     self.touched.push(sp.pixel);
                 }
-                self.scratch_y[p] += sp.xyz[1] as f64;
+                scratch_y[p] += sp.xyz[1] as f64;
                 image_y += sp.xyz[1] as f64;
             }
             for &p in &self.touched {
-                let y = std::mem::take(&mut self.scratch_y[p as usize]);
+                let y = std::mem::take(&mut scratch_y[p as usize]);
                 self.y_sq_over_n[p as usize] += y * y / n;
             }
             self.touched.clear();
