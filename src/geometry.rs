@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 // `UVec2` is named, unqualified, inside obvhs's `traverse!` macro.
-use glam::{UVec2, Vec3A};
+use glam::{UVec2, Vec3A, Vec3Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::node::CwBvhNode;
@@ -197,13 +197,14 @@ impl Geometry {
     pub fn intersect(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
         let mut ray = Ray::new(origin, dir, 0.0, t_max);
+        let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
         let mut state = bvh.new_traversal(dir);
         let mut node;
         obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
             let id = state.primitive_id;
             if id != skip {
-                if let Some((t, b)) = intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)) {
+                if let Some((t, b)) = sheared.intersect(ray.tmax, &self.verts(id as usize)) {
                     if t < ray.tmax {
                         ray.tmax = t;
                         best = Some(Hit { t, prim: id, b });
@@ -221,6 +222,7 @@ impl Geometry {
             return true;
         };
         let ray = Ray::new(origin, dir, 0.0, t_max);
+        let sheared = ShearedRay::new(origin, dir);
         let mut state = bvh.new_traversal(dir);
         let mut node;
         let mut blocked = false;
@@ -228,9 +230,7 @@ impl Geometry {
         'traversal: {
             obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
                 let id = state.primitive_id;
-                if !skip.contains(&id)
-                    && intersect_triangle(ray.origin, ray.direction, ray.tmax, &self.verts(id as usize)).is_some()
-                {
+                if !skip.contains(&id) && sheared.intersect(ray.tmax, &self.verts(id as usize)).is_some() {
                     blocked = true;
                     break 'traversal;
                 }
@@ -436,7 +436,6 @@ fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32
     hits
 }
 
-
 /// Moves `p` off the surface along the normal, to the side `dir` leaves by, far enough that the
 /// rounding error `err` of `p` cannot put the new origin on the wrong side (pbrt-v4 OffsetRayOrigin).
 #[inline]
@@ -473,11 +472,6 @@ fn max_dim(v: Vec3A) -> usize {
     }
 }
 
-#[inline]
-fn permute(v: Vec3A, x: usize, y: usize, z: usize) -> Vec3A {
-    Vec3A::new(v[x], v[y], v[z])
-}
-
 /// a·b − c·d rounded once: f32 products are exact in f64, so only the subtraction and the
 /// final narrowing round (as accurate as Kahan's FMA form, and no FMA instruction needed).
 #[inline]
@@ -491,67 +485,96 @@ fn difference_of_products(a: f32, b: f32, c: f32, d: f32) -> f32 {
 /// for 0 < t < t_max, with t > 0 proven by a conservative error bound.
 #[inline]
 pub fn intersect_triangle(o: Vec3A, d: Vec3A, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
-    let kz = max_dim(d.abs());
-    let kx = if kz == 2 { 0 } else { kz + 1 };
-    let ky = if kx == 2 { 0 } else { kx + 1 };
-    let dir = d;
-    let d = permute(d, kx, ky, kz);
-    let mut p0 = permute(tri[0] - o, kx, ky, kz);
-    let mut p1 = permute(tri[1] - o, kx, ky, kz);
-    let mut p2 = permute(tri[2] - o, kx, ky, kz);
-    let sx = -d.x / d.z;
-    let sy = -d.y / d.z;
-    let sz = 1.0 / d.z;
-    p0.x += sx * p0.z;
-    p0.y += sy * p0.z;
-    p1.x += sx * p1.z;
-    p1.y += sy * p1.z;
-    p2.x += sx * p2.z;
-    p2.y += sy * p2.z;
+    ShearedRay::new(o, d).intersect(t_max, tri)
+}
 
-    let e0 = difference_of_products(p1.x, p2.y, p1.y, p2.x);
-    let e1 = difference_of_products(p2.x, p0.y, p2.y, p0.x);
-    let e2 = difference_of_products(p0.x, p1.y, p0.y, p1.x);
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
-        return None;
-    }
-    let det = e0 + e1 + e2;
-    if det == 0.0 {
-        return None;
-    }
-    p0.z *= sz;
-    p1.z *= sz;
-    p2.z *= sz;
-    let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
-    if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
-        return None;
-    }
-    if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
-        return None;
-    }
-    let inv_det = 1.0 / det;
-    let t = t_scaled * inv_det;
-    if !(t < t_max) {
-        return None;
+/// A ray's part of the watertight test, computed once per ray rather than once per triangle:
+/// which axis becomes z (the largest |dᵢ|) and the shear (sx, sy, sz) that maps d onto +z.
+#[derive(Clone, Copy)]
+pub struct ShearedRay {
+    o: Vec3A,
+    d: Vec3A,
+    kz: usize,
+    sx: f32,
+    sy: f32,
+    sz: f32,
+}
+
+impl ShearedRay {
+    #[inline]
+    pub fn new(o: Vec3A, d: Vec3A) -> Self {
+        let kz = max_dim(d.abs());
+        let pd = Self::permute_for(kz, d);
+        ShearedRay { o, d, kz, sx: -pd.x / pd.z, sy: -pd.y / pd.z, sz: 1.0 / pd.z }
     }
 
-    // Conservative bound on t's error, so that t > 0 is certain (pbrt-v4 §6.8.4).
-    let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
-    let delta_z = gamma(3) * max_zt;
-    let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
-    let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
-    let delta_x = gamma(5) * (max_xt + max_zt);
-    let delta_y = gamma(5) * (max_yt + max_zt);
-    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
-    let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-    let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-    if t <= delta_t {
-        // The f32 bound cannot prove t > 0. Near a concave edge a genuine hit can sit closer than
-        // that bound (it grows with the triangle's size), and rejecting it would let the photon
-        // leak: decide again in f64, whose bound is 2^29 times tighter.
-        return intersect_triangle_f64(o, dir, t_max, tri);
+    /// (v[kx], v[ky], v[kz]) with kx, ky the two axes after kz, cyclically.
+    #[inline(always)]
+    fn permute_for(kz: usize, v: Vec3A) -> Vec3A {
+        match kz {
+            0 => v.yzx(),
+            1 => v.zxy(),
+            _ => v,
+        }
     }
-    Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
+
+    #[inline]
+    pub fn intersect(&self, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
+        let (o, kz, sx, sy, sz) = (self.o, self.kz, self.sx, self.sy, self.sz);
+        let mut p0 = Self::permute_for(kz, tri[0] - o);
+        let mut p1 = Self::permute_for(kz, tri[1] - o);
+        let mut p2 = Self::permute_for(kz, tri[2] - o);
+        p0.x += sx * p0.z;
+        p0.y += sy * p0.z;
+        p1.x += sx * p1.z;
+        p1.y += sy * p1.z;
+        p2.x += sx * p2.z;
+        p2.y += sy * p2.z;
+
+        let e0 = difference_of_products(p1.x, p2.y, p1.y, p2.x);
+        let e1 = difference_of_products(p2.x, p0.y, p2.y, p0.x);
+        let e2 = difference_of_products(p0.x, p1.y, p0.y, p1.x);
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        let det = e0 + e1 + e2;
+        if det == 0.0 {
+            return None;
+        }
+        p0.z *= sz;
+        p1.z *= sz;
+        p2.z *= sz;
+        let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
+            return None;
+        }
+        let inv_det = 1.0 / det;
+        let t = t_scaled * inv_det;
+        if !(t < t_max) {
+            return None;
+        }
+
+        // Conservative bound on t's error, so that t > 0 is certain (pbrt-v4 §6.8.4).
+        let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
+        let delta_z = gamma(3) * max_zt;
+        let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
+        let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+        let delta_x = gamma(5) * (max_xt + max_zt);
+        let delta_y = gamma(5) * (max_yt + max_zt);
+        let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+        if t <= delta_t {
+            // The f32 bound cannot prove t > 0. Near a concave edge a genuine hit can sit closer than
+            // that bound (it grows with the triangle's size), and rejecting it would let the photon
+            // leak: decide again in f64, whose bound is 2^29 times tighter.
+            return intersect_triangle_f64(o, self.d, t_max, tri);
+        }
+        Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
+    }
 }
 
 /// γ(n) for f64 arithmetic.

@@ -131,7 +131,8 @@ impl IesProfile {
         // LM-63-1986 and -1991 files; LM-63-1995 and -2002 call it "future use" and LM-63-2019
         // the "file generation type" (codes such as 1.10000), which scale nothing.
         let ballast_lamp_multiplies = !first_line_names_version(lines.first().copied().unwrap_or(""));
-        let scale = multiplier * ballast * if ballast_lamp_multiplies && ballast_lamp > 0.0 { ballast_lamp } else { 1.0 };
+        let scale =
+            multiplier * ballast * if ballast_lamp_multiplies && ballast_lamp > 0.0 { ballast_lamp } else { 1.0 };
         let mut angles = |n: usize, what: &str| -> Result<(Vec<f64>, usize), InputError> {
             let mut v = Vec::with_capacity(n);
             let mut first_line = 0;
@@ -171,8 +172,7 @@ impl IesProfile {
         }
         let (c_deg, cd) = expand_symmetry(&h_deg, table).map_err(|m| err(hl, m))?;
         let rated_lm = (lumens_per_lamp > 0.0).then_some(lamps * lumens_per_lamp);
-        let mut p =
-            IesProfile {
+        let mut p = IesProfile {
             gamma_deg,
             c_deg,
             cd,

@@ -170,6 +170,9 @@ pub struct SpectralSampler {
     ys: Vec<f64>,
     /// cdf[i] = ∫ from xs[0] to xs[i], unnormalised; cdf.last() is the total.
     cdf: Vec<f64>,
+    /// guide[j]: the last segment whose cdf starts at or below j/G of the total, where the search
+    /// for a u in [j/G, (j+1)/G) begins (a guide table: O(1) expected instead of a binary search).
+    guide: Vec<u32>,
 }
 
 impl SpectralSampler {
@@ -183,18 +186,43 @@ impl SpectralSampler {
             cdf.push(cdf[i - 1] + 0.5 * (ys[i - 1] + ys[i]) * (xs[i] - xs[i - 1]));
         }
         let total = *cdf.last().unwrap();
-        (total > 0.0 && total.is_finite()).then_some(SpectralSampler { xs, ys, cdf })
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        let cells = xs.len().max(64);
+        let guide = (0..cells)
+            .map(|j| {
+                let start = j as f64 / cells as f64 * total;
+                (cdf.partition_point(|&c| c <= start).max(1) - 1).min(xs.len() - 2) as u32
+            })
+            .collect();
+        Some(SpectralSampler { xs, ys, cdf, guide })
     }
 
     pub fn total(&self) -> f64 {
         *self.cdf.last().unwrap()
     }
 
+    /// Segment i (spanning xs[i]..xs[i+1]) holding `target` = u·total: the last with
+    /// cdf[i] ≤ target, and i ≤ len − 2. The guide's start is at or just below it; the backward
+    /// step only guards against rounding in u·cells.
+    #[inline]
+    fn segment(&self, u: f64, target: f64) -> usize {
+        let cells = self.guide.len();
+        let mut i = self.guide[((u * cells as f64) as usize).min(cells - 1)] as usize;
+        while i > 0 && self.cdf[i] > target {
+            i -= 1;
+        }
+        while i + 2 < self.xs.len() && self.cdf[i + 1] <= target {
+            i += 1;
+        }
+        i
+    }
+
     /// λ with density f(λ)/∫f, from one uniform u in [0, 1).
     pub fn sample(&self, u: f64) -> f64 {
         let target = u * self.total();
-        // Segment i spans xs[i]..xs[i+1]; first segment whose upper cdf exceeds target.
-        let i = (self.cdf.partition_point(|&c| c <= target).max(1) - 1).min(self.xs.len() - 2);
+        let i = self.segment(u, target);
         let (x0, x1) = (self.xs[i], self.xs[i + 1]);
         let (f0, f1) = (self.ys[i], self.ys[i + 1]);
         let w = x1 - x0;
@@ -247,6 +275,22 @@ mod tests {
         for k in 0..100 {
             let u = k as f64 / 100.0;
             assert!((sampler.sample(u) - (400.0 + 100.0 * u.sqrt())).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn guided_search_finds_the_binary_search_segment() {
+        // Zero stretches make flat runs in the cdf, where "the last segment with cdf ≤ target"
+        // and a search that starts in the wrong place would disagree.
+        let pts =
+            vec![(400.0, 0.0), (410.0, 0.0), (420.0, 2.0), (430.0, 0.0), (440.0, 0.0), (450.0, 5.0), (700.0, 1.0)];
+        let sampler = SpectralSampler::new(&Spectrum::Table(Table::new(pts)), (400.0, 700.0)).unwrap();
+        let mut s = crate::sampling::Sampler::for_batch(5, 0);
+        let edges = (0..=64).map(|j| j as f64 / 64.0);
+        for u in edges.chain((0..100_000).map(|_| s.uniform())).filter(|&u| u < 1.0) {
+            let target = u * sampler.total();
+            let binary = (sampler.cdf.partition_point(|&c| c <= target).max(1) - 1).min(sampler.xs.len() - 2);
+            assert_eq!(sampler.segment(u, target), binary, "u = {u}");
         }
     }
 

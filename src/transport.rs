@@ -9,7 +9,7 @@ use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{Geometry, RayEnd};
 use crate::maps::SurfaceMap;
-use crate::material::{albedo, lobe_factor, sample_scatter};
+use crate::material::{albedo, lobe_factor, sample_scatter, Lobe};
 use crate::photometry;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
@@ -285,7 +285,7 @@ impl Kernel<'_> {
                             break;
                         }
                         if HERO {
-                            hero.event::<EXPECTED>(|l| {
+                            hero.event::<EXPECTED>(|_, l| {
                                 let k = (-alpha.eval(l) * t).exp();
                                 (k, k)
                             });
@@ -306,6 +306,14 @@ impl Kernel<'_> {
                         spectra.add((first + k) as u32, weight);
                     }
                 }
+                // ρ and τ of a Lambertian surface at the four hero wavelengths, read once here for
+                // both the camera splat and the scattering event (a table lookup each).
+                let hero_rho_tau = match material {
+                    Material::Lambertian { reflectance, transmittance } if HERO => {
+                        Some((hero.lambda.map(|l| reflectance.eval(l)), hero.lambda.map(|l| transmittance.eval(l))))
+                    }
+                    _ => None,
+                };
                 if let (true, Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
                     (CAMERA, self.camera, film.as_deref_mut(), material)
                 {
@@ -313,12 +321,14 @@ impl Kernel<'_> {
                     let n_in = if dir.dot(n) < 0.0 { n } else { -n };
                     splat(cam, geo, film, p, err, n, hit.prim, |w| {
                         let cos = w.dot(n_in);
-                        let lobe = |l: f64| if cos > 0.0 { reflectance.eval(l) } else { transmittance.eval(l) };
                         let geometric = cos.abs() * std::f32::consts::FRAC_1_PI;
-                        if HERO {
-                            hero.splat_xyz(lobe) * geometric
-                        } else {
-                            birth.xyz * (weight * lobe(lambda)) as f32 * geometric
+                        match hero_rho_tau {
+                            Some((rho, tau)) => hero.splat_xyz(if cos > 0.0 { rho } else { tau }) * geometric,
+                            None => {
+                                let lobe =
+                                    if cos > 0.0 { reflectance.eval(lambda) } else { transmittance.eval(lambda) };
+                                birth.xyz * (weight * lobe) as f32 * geometric
+                            }
                         }
                     });
                 }
@@ -340,7 +350,15 @@ impl Kernel<'_> {
                 out.counters.fresnel_evaluations += is_dielectric as u64;
                 let (new_dir, lobe) = sample_scatter(material, lambda, dir, n, &mut s);
                 if HERO {
-                    hero.event::<EXPECTED>(|l| (lobe_factor(material, lobe, l, dir, n), albedo(material, l)));
+                    match hero_rho_tau {
+                        Some((rho, tau)) => hero.event::<EXPECTED>(|k, _| {
+                            let factor = if lobe == Lobe::DiffuseReflection { rho[k] } else { tau[k] };
+                            (factor, rho[k] + tau[k])
+                        }),
+                        None => {
+                            hero.event::<EXPECTED>(|_, l| (lobe_factor(material, lobe, l, dir, n), albedo(material, l)))
+                        }
+                    }
                 }
                 if scatterings == max_bounces {
                     out.truncated += weight;
@@ -430,8 +448,11 @@ struct Hero {
 impl Hero {
     fn new(emitter: &Emitter, birth: &Birth, range: (f64, f64)) -> Self {
         let width = range.1 - range.0;
-        let lambda: [f64; 4] =
-            std::array::from_fn(|k| range.0 + (birth.lambda_nm - range.0 + k as f64 * width / 4.0).rem_euclid(width));
+        let lambda: [f64; 4] = std::array::from_fn(|k| {
+            // In [0, 1.75·width]: one subtraction wraps it, exactly (Sterbenz), as fmod would.
+            let x = birth.lambda_nm - range.0 + k as f64 * width / 4.0;
+            range.0 + if x >= width { x - width } else { x }
+        });
         Hero {
             lambda,
             power: lambda.map(|l| emitter.spectral_power(birth.light, l)),
@@ -442,11 +463,11 @@ impl Hero {
         }
     }
 
-    /// One event whose throughput factor and albedo at λ are `at(λ)`.
+    /// One event whose throughput factor and albedo at λₖ are `at(k, λₖ)`.
     #[inline]
-    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(f64) -> (f64, f64)) {
+    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(usize, f64) -> (f64, f64)) {
         for k in 0..4 {
-            let (factor, albedo) = at(self.lambda[k]);
+            let (factor, albedo) = at(k, self.lambda[k]);
             self.throughput[k] *= factor;
             if EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT {
                 self.probability[k] *= if albedo > 0.0 { factor / albedo } else { 0.0 };
@@ -468,15 +489,15 @@ impl Hero {
         (0..4).fold(Vec3A::ZERO, |acc, k| acc + self.colour[k] * (self.power[k] / d) as f32)
     }
 
-    /// XYZ of a diffuse vertex whose BSDF factor toward the camera at λ is `bsdf(λ)`.
+    /// XYZ of a diffuse vertex whose BSDF factor toward the camera at λₖ is `bsdf[k]`.
     #[inline]
-    fn splat_xyz(&self, bsdf: impl Fn(f64) -> f64) -> Vec3A {
+    fn splat_xyz(&self, bsdf: [f64; 4]) -> Vec3A {
         let d = self.denominator();
         if !(d > 0.0) {
             return Vec3A::ZERO;
         }
         (0..4).fold(Vec3A::ZERO, |acc, k| {
-            acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf(self.lambda[k]) / d) as f32
+            acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] / d) as f32
         })
     }
 }

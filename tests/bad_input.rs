@@ -999,7 +999,11 @@ fn map_on_a_quad_whose_first_edges_are_parallel() {
 
 #[test]
 fn names_that_make_the_same_file_name() {
-    let toml = format!("{BASE}{}{}", SECOND_SURFACE.replace("\"wall\"", "\"wall 1\""), SECOND_SURFACE.replace("\"wall\"", "\"wall_1\""));
+    let toml = format!(
+        "{BASE}{}{}",
+        SECOND_SURFACE.replace("\"wall\"", "\"wall 1\""),
+        SECOND_SURFACE.replace("\"wall\"", "\"wall_1\"")
+    );
     expect_bad(
         "name-stems",
         &toml,

@@ -78,7 +78,8 @@ fn full_run_cost(toml: &str, photons: u64, seed: u64, estimator: Estimator) -> f
     use photon::run::{apply_options, simulate, RunOptions};
     let mut s = common::scene(toml);
     let transport = TransportOptions { estimator, stratified: false, hero: true };
-    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
     let chosen = apply_options(&mut s, &opts).unwrap();
     let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
     let f = photon::output::flux(&s, &r);
@@ -110,8 +111,10 @@ fn auto_picks_expected_value_absorption_in_the_furnace_and_analog_in_the_open_co
         assert!(a.cost > 10.0 * e.cost, "{p:?}");
     }
     // Independent full runs confirm the verdict by a wide margin (the pilots saw ~30×).
-    let (analog, expected) =
-        (full_run_cost(&furnace, 100_000, 7, Estimator::Analog), full_run_cost(&furnace, 100_000, 8, Estimator::Expected));
+    let (analog, expected) = (
+        full_run_cost(&furnace, 100_000, 7, Estimator::Analog),
+        full_run_cost(&furnace, 100_000, 8, Estimator::Expected),
+    );
     assert!(analog > 10.0 * expected, "full runs: analog {analog} vs expected {expected}");
     // The Cornell box, open and darker, where analog photons' short paths win (README table:
     // analog's worst-tally FOM 1.1–1.35× and image FOM 1.6–1.9× expected's).

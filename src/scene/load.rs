@@ -918,7 +918,10 @@ impl<'s> Loader<'s> {
                 if let Some(d) = out.iter().find(|d| crate::maps::file_stem(&d.name) == stem) {
                     return Err(t.err_at(
                         "name",
-                        format!("detectors \"{}\" and \"{name}\" would both write farfield_{stem}.csv: rename one", d.name),
+                        format!(
+                            "detectors \"{}\" and \"{name}\" would both write farfield_{stem}.csv: rename one",
+                            d.name
+                        ),
                     ));
                 }
                 let resolution = t.require("resolution", |n| {

@@ -17,7 +17,8 @@ pub fn scene(toml: &str) -> Scene {
 
 /// Expected-value absorption, fixed: with the default (`auto`) a pilot would choose per scene,
 /// and which estimator a test exercises could change unnoticed.
-pub const EXPECTED: TransportOptions = TransportOptions { estimator: Estimator::Expected, stratified: false, hero: true };
+pub const EXPECTED: TransportOptions =
+    TransportOptions { estimator: Estimator::Expected, stratified: false, hero: true };
 
 /// Runs `toml` with `photons` photons and `seed` on 2 threads, expected-value absorption; returns
 /// the flux table.
