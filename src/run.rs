@@ -14,6 +14,9 @@ use crate::transport::{Estimator, Kernel, TransportOptions};
 
 /// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
 pub const BATCH_PHOTONS: u64 = 16_384;
+
+/// Longest the merge waits for a batch before it looks at the clock and for Ctrl-C again.
+const POLL: std::time::Duration = std::time::Duration::from_millis(10);
 /// A relative-error stop is judged only after this many batches, so the variance estimate is
 /// sound: with per-history errors 4 batches (65 536 histories) suffice; errors from the spread
 /// between batches (stratified runs) need about 30 degrees of freedom not to stop on a lucky draw.
@@ -187,8 +190,15 @@ pub fn simulate_observed(
         }
         _ => (opts.transport, None),
     };
-    let kernel =
-        Kernel { scene, emitter: &emitter, camera: light_camera, image: image_kernel.as_ref(), options: transport };
+    let quit = AtomicBool::new(false);
+    let kernel = Kernel {
+        scene,
+        emitter: &emitter,
+        camera: light_camera,
+        image: image_kernel.as_ref(),
+        options: transport,
+        cancel: Some(&quit),
+    };
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
 
@@ -215,7 +225,6 @@ pub fn simulate_observed(
     let mut failure: Option<String> = None;
     let next = AtomicU64::new(0);
     let merged = AtomicU64::new(0);
-    let quit = AtomicBool::new(false);
     let (tx, rx) = std::sync::mpsc::channel();
     pool.in_place_scope(|scope| {
         for _ in 0..workers {
@@ -244,7 +253,8 @@ pub fn simulate_observed(
                                 .or_else(|| e.downcast_ref::<String>().cloned());
                             format!("batch {b} failed: {}", what.unwrap_or_else(|| "panic".into()))
                         });
-                if tx.send((b, traced)).is_err() {
+                // A batch cut short by the stop is never merged.
+                if quit.load(Ordering::Relaxed) || tx.send((b, traced)).is_err() {
                     break;
                 }
             });
@@ -252,8 +262,32 @@ pub fn simulate_observed(
         drop(tx);
         let mut pending = std::collections::BTreeMap::new();
         let mut want = 0u64;
+        // A time budget or Ctrl-C ends the run when it comes, not when the next batch does: the
+        // merge waits at most POLL for a batch, and once one batch is in, a stop cancels the
+        // batches in hand (they end within CANCEL_CHECK_PHOTONS photons and are dropped).
+        let stop_now = |want: u64| -> Option<StopReason> {
+            if want == 0 {
+                None
+            } else if interrupt.load(Ordering::Relaxed) {
+                Some(StopReason::Interrupted)
+            } else if opts.time_s.is_some_and(|t| start.elapsed().as_secs_f64() >= t) {
+                Some(StopReason::Time)
+            } else {
+                None
+            }
+        };
         'merge: while want < total_batches {
-            let Ok((b, result)) = rx.recv() else { break };
+            let (b, result) = match rx.recv_timeout(POLL) {
+                Ok(received) => received,
+                Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    if let Some(reason) = stop_now(want) {
+                        stop = reason;
+                        break 'merge;
+                    }
+                    continue;
+                }
+                Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            };
             match result {
                 Ok(r) => {
                     pending.insert(b, r);
@@ -293,12 +327,8 @@ pub fn simulate_observed(
                         break 'merge;
                     }
                 }
-                if interrupt.load(Ordering::Relaxed) {
-                    stop = StopReason::Interrupted;
-                    break 'merge;
-                }
-                if opts.time_s.is_some_and(|t| start.elapsed().as_secs_f64() >= t) {
-                    stop = StopReason::Time;
+                if let Some(reason) = stop_now(want) {
+                    stop = reason;
                     break 'merge;
                 }
             }
@@ -387,7 +417,7 @@ pub fn choose_estimator(
     let part = PILOT_ROUND / PILOT_PARTS;
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
-        let kernel = Kernel { scene, emitter, camera, image: None, options };
+        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None };
         let mut total = Tallies::for_scene(scene);
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;
@@ -412,7 +442,7 @@ pub fn choose_estimator(
     // The camera integrator's own rays per sample (one sample per photon); batch 0's stream, only counted.
     let image_rays = image.map_or(0.0, |img| {
         let mut c = crate::tally::Counters::default();
-        img.trace_batch(0, part, &mut c);
+        img.trace_batch(0, part, &mut c, None);
         (c.rays + c.shadow_rays) as f64 / part as f64
     });
     let model = transport.error_model();

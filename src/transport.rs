@@ -3,6 +3,8 @@
 //! estimator a run calls for, so a grey scene never draws a wavelength, a run without a film
 //! never splats, and neither pays a branch per photon for the other's work.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use glam::Vec3A;
 
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
@@ -70,6 +72,17 @@ pub struct Kernel<'a> {
     pub camera: Option<&'a CameraModel>,
     pub image: Option<&'a crate::camera_paths::ImageKernel<'a>>,
     pub options: TransportOptions,
+    /// Set when the run has stopped: a batch in hand then ends early, and is discarded.
+    pub cancel: Option<&'a AtomicBool>,
+}
+
+/// Photons between two looks at `Kernel::cancel`.
+pub const CANCEL_CHECK_PHOTONS: u64 = 256;
+
+/// Whether `cancel` is set; checked every `CANCEL_CHECK_PHOTONS` photons of a batch.
+#[inline]
+pub fn cancelled(cancel: Option<&AtomicBool>, photon: u64) -> bool {
+    photon % CANCEL_CHECK_PHOTONS == 0 && cancel.is_some_and(|c| c.load(Ordering::Relaxed))
 }
 
 impl Kernel<'_> {
@@ -102,7 +115,7 @@ impl Kernel<'_> {
         }
         if let Some(image) = self.image {
             // The camera samples share the batch's indices, so a stop at a batch boundary stops both.
-            film = Some(image.trace_batch(batch, count, &mut tallies.counters));
+            film = Some(image.trace_batch(batch, count, &mut tallies.counters, self.cancel));
         }
         tallies.counters.trace_seconds = start.elapsed().as_secs_f64();
         (tallies, film)
@@ -225,6 +238,10 @@ impl Kernel<'_> {
         let (range_lo, range_width) = (range.0, range.1 - range.0);
 
         for photon in 0..count as u32 {
+            if cancelled(self.cancel, photon as u64) {
+                out.photons = photon as u64;
+                return out;
+            }
             let u: EmitSample = match &strata {
                 Some(table) => table[photon as usize],
                 None => std::array::from_fn(|_| s.uniform()),

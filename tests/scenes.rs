@@ -183,7 +183,7 @@ fn ctrl_c_writes_the_finished_batches_with_stop_reason_interrupted() {
 }
 
 #[test]
-fn time_budget_stops_within_a_round_of_batches() {
+fn time_budget_stops_within_a_fraction_of_a_batch() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/furnace.toml");
     let out = temp_dir("time");
     let o = photon()
@@ -198,10 +198,13 @@ fn time_budget_stops_within_a_round_of_batches() {
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["stop_reason"], "time");
     let wall = run["wall_seconds"].as_f64().unwrap();
-    // The budget is checked after each round of 2 × threads batches: the run ends at most one
-    // round past 2 s (a round's length follows from the measured rate), plus scheduling slack.
-    let round = 4.0 * 16_384.0 / run["photons_per_second"].as_f64().unwrap();
-    assert!(wall >= 2.0 && wall <= 2.0 + round + 0.5, "wall {wall} s, round {round} s");
+    // The merge looks at the clock at least every 10 ms, and a stop cuts the batches in hand
+    // short within 256 of their 16 384 photons: the run ends a small fraction of one batch's
+    // time past 2 s (here ~0.6 s per batch per thread; waiting for the batches in hand, as before,
+    // overshot by 0.5–0.8 s). An eighth of a batch (8 × the cut) and 0.05 s leave room for a
+    // loaded machine.
+    let batch = 2.0 * 16_384.0 / run["photons_per_second"].as_f64().unwrap();
+    assert!(wall >= 2.0 && wall <= 2.0 + batch / 8.0 + 0.05, "wall {wall} s, one batch per thread {batch} s");
     assert_eq!(run["photons"].as_u64().unwrap() % 16_384, 0);
     std::fs::remove_dir_all(&out).unwrap();
 }

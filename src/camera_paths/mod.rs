@@ -380,13 +380,20 @@ impl<'a> ImageKernel<'a> {
     /// Traces the camera samples of transport batch `batch` (`count` of them, the same indices
     /// as its photons) with the batch's own random stream, compiled for the scene's effect set.
     /// Rays, visibility rays and splats are added to `counters`.
-    pub fn trace_batch(&self, batch: u64, count: u64, counters: &mut Counters) -> FilmBatch {
+    /// One batch of camera samples; ends early, to be discarded, once `cancel` is set.
+    pub fn trace_batch(
+        &self,
+        batch: u64,
+        count: u64,
+        counters: &mut Counters,
+        cancel: Option<&std::sync::atomic::AtomicBool>,
+    ) -> FilmBatch {
         let fx = &self.scene.effects;
         match (fx.spectral, fx.refraction) {
-            (true, true) => self.trace::<true, true>(batch, count, counters),
-            (true, false) => self.trace::<true, false>(batch, count, counters),
-            (false, true) => self.trace::<false, true>(batch, count, counters),
-            (false, false) => self.trace::<false, false>(batch, count, counters),
+            (true, true) => self.trace::<true, true>(batch, count, counters, cancel),
+            (true, false) => self.trace::<true, false>(batch, count, counters, cancel),
+            (false, true) => self.trace::<false, true>(batch, count, counters, cancel),
+            (false, false) => self.trace::<false, false>(batch, count, counters, cancel),
         }
     }
 
@@ -395,6 +402,7 @@ impl<'a> ImageKernel<'a> {
         batch: u64,
         count: u64,
         counters: &mut Counters,
+        cancel: Option<&std::sync::atomic::AtomicBool>,
     ) -> FilmBatch {
         let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
         let first = batch * crate::run::BATCH_PHOTONS;
@@ -403,6 +411,9 @@ impl<'a> ImageKernel<'a> {
         film.samples.reserve(count as usize);
         let mut bdpt = bdpt::Scratch::default();
         for i in 0..count {
+            if crate::transport::cancelled(cancel, i) {
+                break;
+            }
             let pixel = ((first + i) % pixels) as usize;
             film.photon = i as u32;
             let xyz = match self.integrator {
