@@ -214,8 +214,9 @@ pub fn simulate_observed(
     // Workers take batch indices in order and send results back; this thread merges them in
     // index order as they arrive, so tracing never waits for merging and the merge order (hence
     // every number) is the same for any thread count. Workers stay at most `window` batches
-    // ahead of the merge, which bounds memory; a stop (target met, time, Ctrl-C) tells them to
-    // quit after the batch in hand, and batches past the stopping point are discarded.
+    // ahead of the merge, which bounds memory; a stop (target met, time, Ctrl-C) cuts the batches
+    // in hand short (within CANCEL_CHECK_PHOTONS photons), and only the unbroken run of batches
+    // merged before it counts.
     let window = 2 * threads as u64;
     let workers = (threads as u64).min(total_batches.max(1)) as usize;
     let min_batches = match opts.transport.error_model() {
@@ -253,8 +254,8 @@ pub fn simulate_observed(
                                 .or_else(|| e.downcast_ref::<String>().cloned());
                             format!("batch {b} failed: {}", what.unwrap_or_else(|| "panic".into()))
                         });
-                // A batch cut short by the stop is never merged.
-                if quit.load(Ordering::Relaxed) || tx.send((b, traced)).is_err() {
+                // A batch cut short by the stop is never merged; a failure is always reported.
+                if (traced.is_ok() && quit.load(Ordering::Relaxed)) || tx.send((b, traced)).is_err() {
                     break;
                 }
             });
@@ -520,5 +521,30 @@ impl RunResult {
     /// (absorbed lm, standard error) of surface `i`.
     pub fn absorbed_lm(&self, i: usize) -> (f64, f64) {
         self.tallies.estimate(&self.tallies.absorbed_lm, i, self.emitted_w, self.transport.error_model())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panic_in_a_batch_fails_the_run() {
+        // Kernel::trace_batch panics in batch 3 under this seed (test builds only).
+        let toml = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes/furnace.toml")).unwrap();
+        let mut scene = crate::scene::load_str(std::path::Path::new("furnace.toml"), &toml).unwrap();
+        let opts = RunOptions {
+            photons: Some(20 * BATCH_PHOTONS),
+            seed: Some(crate::transport::PANIC_TEST_SEED),
+            threads: Some(2),
+            transport: TransportOptions { estimator: Estimator::Analog, ..Default::default() },
+            ..Default::default()
+        };
+        let chosen = apply_options(&mut scene, &opts).unwrap();
+        match simulate(&scene, &opts, &chosen, &AtomicBool::new(false)) {
+            Err(Error::Other(message)) => assert!(message.contains("batch 3 failed"), "{message}"),
+            Err(e) => panic!("wrong error: {e}"),
+            Ok(r) => panic!("the run succeeded with {} photons", r.tallies.photons),
+        }
     }
 }

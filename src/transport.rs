@@ -76,6 +76,10 @@ pub struct Kernel<'a> {
     pub cancel: Option<&'a AtomicBool>,
 }
 
+/// Under this seed, test builds panic in batch 3 (to test that a failed batch fails the run).
+#[cfg(test)]
+pub const PANIC_TEST_SEED: u64 = 0xDEAD_BEEF;
+
 /// Photons between two looks at `Kernel::cancel`.
 pub const CANCEL_CHECK_PHOTONS: u64 = 256;
 
@@ -94,6 +98,10 @@ impl Kernel<'_> {
 
     /// Traces one batch, dispatching once to the kernel specialised for the run.
     pub fn trace_batch(&self, batch: u64, count: u64) -> (Tallies, Option<FilmBatch>) {
+        #[cfg(test)]
+        if self.scene.simulation.seed == PANIC_TEST_SEED && batch == 3 {
+            panic!("a test's deliberate panic");
+        }
         let start = std::time::Instant::now();
         let mut film = self.camera.map(|_| FilmBatch::default());
         let fx = &self.scene.effects;

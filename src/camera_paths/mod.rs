@@ -379,8 +379,8 @@ impl<'a> ImageKernel<'a> {
 
     /// Traces the camera samples of transport batch `batch` (`count` of them, the same indices
     /// as its photons) with the batch's own random stream, compiled for the scene's effect set.
-    /// Rays, visibility rays and splats are added to `counters`.
-    /// One batch of camera samples; ends early, to be discarded, once `cancel` is set.
+    /// Rays, visibility rays and splats are added to `counters`. Ends early, to be discarded,
+    /// once `cancel` is set.
     pub fn trace_batch(
         &self,
         batch: u64,
