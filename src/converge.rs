@@ -37,6 +37,8 @@ pub struct Convergence {
     pub surface: String,
     pub reference_w: f64,
     pub reference_source: String,
+    /// Which integrator made the image, when there is one.
+    pub image_integrator: Option<crate::camera_paths::Integrator>,
     pub rows: Vec<Row>,
 }
 
@@ -158,7 +160,13 @@ pub fn converge(
             }
         })
         .collect();
-    Ok(Convergence { surface: scene.surfaces[surface].name.clone(), reference_w, reference_source, rows })
+    Ok(Convergence {
+        surface: scene.surfaces[surface].name.clone(),
+        reference_w,
+        reference_source,
+        image_integrator: result.film.is_some().then_some(result.integrator),
+        rows,
+    })
 }
 
 /// Relative RMSE of `y` against an independent reference `r`: sqrt(mean((y − r)²) − mean(Var r))
@@ -187,8 +195,12 @@ pub fn log_log_slope(points: &[(f64, f64)]) -> Option<f64> {
 
 impl Convergence {
     pub fn table(&self) -> String {
+        let image = match self.image_integrator {
+            Some(i) => format!("; image rRMSE: the {} image against the independent run's", i.name()),
+            None => String::new(),
+        };
         let mut s = format!(
-            "surface {}: incident power; reference {:.6e} W ({})\n{:>11}  {:>9}  {:>14}  {:>10}  {:>12}  {:>10}  {:>12}\n",
+            "surface {}: incident power; reference {:.6e} W ({}){image}\n{:>11}  {:>9}  {:>14}  {:>10}  {:>12}  {:>10}  {:>12}\n",
             self.surface,
             self.reference_w,
             self.reference_source,
