@@ -52,6 +52,8 @@ struct Vertex {
     diffuse: Option<Diffuse>,
     /// A light vertex's emission axis.
     axis: Vec3A,
+    /// The absorbing or clear dielectric a surface vertex was reached through (None outside any).
+    medium: Option<u32>,
 }
 
 impl Vertex {
@@ -74,6 +76,7 @@ impl Vertex {
             delta: false,
             diffuse: None,
             axis: n,
+            medium: None,
         }
     }
 }
@@ -261,6 +264,7 @@ impl ImageKernel<'_> {
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
             v.surface = surface;
             v.wo = -dir;
+            v.medium = medium;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
             if let Material::Lambertian { reflectance, transmittance } = material {
                 v.diffuse = Some(Diffuse::new::<SPECTRAL>(reflectance, transmittance, wl));
@@ -422,7 +426,12 @@ impl ImageKernel<'_> {
             let w = d.normalize();
             let cos_q = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
             let cos_p = pt.n.dot(w).abs() as f64;
-            let c = qs.beta * self.vertex_f(qs, w) * self.vertex_f(pt, -w) * pt.beta * (cos_q * cos_p / d2);
+            let mut c = qs.beta * self.vertex_f(qs, w) * self.vertex_f(pt, -w) * pt.beta * (cos_q * cos_p / d2);
+            // A visible segment crosses no dielectric boundary, so it lies in the medium the
+            // camera vertex sits in; Beer–Lambert applies to it as to the sampled segments.
+            if let Some(t) = pt.medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {
+                c *= t;
+            }
             if c.is_zero() {
                 return None;
             }

@@ -80,7 +80,8 @@ impl ImageKernel<'_> {
             let new_dir = match material {
                 Material::Lambertian { reflectance, transmittance } => {
                     let bsdf = Diffuse::new::<SPECTRAL>(reflectance, transmittance, &wl);
-                    self.next_event::<SPECTRAL>(&bsdf, p, err, n, hit.prim, -dir, beta, &wl, &mut acc, s, counters);
+                    let vertex = RayEnd { p, err, n, prim: hit.prim };
+                    self.next_event::<SPECTRAL>(&bsdf, vertex, medium, -dir, beta, &wl, &mut acc, s, counters);
                     let Some((wi, pdf, factor)) = bsdf.sample(-dir, n, s) else { break };
                     beta *= factor;
                     bsdf_pdf = Some(pdf);
@@ -124,10 +125,8 @@ impl ImageKernel<'_> {
     fn next_event<const SPECTRAL: bool>(
         &self,
         bsdf: &Diffuse,
-        p: Vec3A,
-        err: Vec3A,
-        n: Vec3A,
-        prim: u32,
+        vertex: RayEnd,
+        medium: Option<u32>,
         wo: Vec3A,
         beta: Lanes,
         wl: &Wavelengths,
@@ -135,6 +134,7 @@ impl ImageKernel<'_> {
         s: &mut Sampler,
         counters: &mut Counters,
     ) {
+        let RayEnd { p, n, .. } = vertex;
         let (light, pick) = self.emitter.pick_light(s.uniform());
         let lp = self.emitter.sample_point(self.geo(), light, [s.uniform(), s.uniform(), s.uniform()]);
         if self.emitter.is_collimated(light) {
@@ -160,11 +160,13 @@ impl ImageKernel<'_> {
             power_heuristic(p_light, bsdf.pdf(wo, wi, n))
         };
         counters.shadow_rays += 1;
-        if !self.geo().visible(RayEnd { p, err, n, prim }, lp.end()) {
+        if !self.geo().visible(vertex, lp.end()) {
             return;
         }
         let radiance_term = light_share::<SPECTRAL>(self.emitter, light, wl)
             * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
-        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term);
+        // A visible light lies in the vertex's own medium: Beer–Lambert over the shadow segment.
+        let absorbed = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl));
+        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * absorbed.unwrap_or(Lanes::ONE));
     }
 }
