@@ -38,6 +38,8 @@ struct EmitLight {
     area_m2: f64,
     /// ∫S dλ over the wavelength range.
     spectrum_integral: f64,
+    /// The dielectric the light sits inside (emits into), if any: its photons' first medium.
+    medium: Option<u32>,
 }
 
 /// A photon at birth.
@@ -107,7 +109,9 @@ impl Emitter {
                 let xyz = cie.integrate(&l.spectrum, range);
                 let norm = l.spectrum.integral(range) * cie.y_integral(range);
                 let grey_xyz = Vec3A::new((xyz[0] / norm) as f32, (xyz[1] / norm) as f32, (xyz[2] / norm) as f32);
+                let medium = if scene.effects.refraction { light_medium(scene, &origin) } else { None };
                 EmitLight {
+                    medium,
                     origin,
                     distribution: l.distribution,
                     ies: l.ies.as_ref().map(|i| (i.profile.clone(), i.c0.map(|c| c.as_vec3a()))),
@@ -129,6 +133,11 @@ impl Emitter {
             y_norm,
             cmf: crate::color::cmf(),
         }
+    }
+
+    /// The dielectric light `light` sits inside, if any: the medium of its photons' first segment.
+    pub fn medium_of(&self, light: usize) -> Option<u32> {
+        self.lights[light].medium
     }
 
     /// Samples one photon from the uniform numbers `u` (see `EmitSample`). With `SPECTRAL` false
@@ -320,4 +329,39 @@ fn direction(d: Distribution, n: Vec3A, u1: f32, u2: f32) -> Vec3A {
         Distribution::CosinePower(e) => cosine_power_lobe(n, e as f32, u1, u2),
         Distribution::Ies => unreachable!("IES directions come from the light's table"),
     }
+}
+
+/// The dielectric surface enclosing a light's emitting side, by parity: a ray from a point just
+/// in front of the light crosses each closed surface an odd number of times only if the point is
+/// inside it. Nested dielectrics are not supported, so the first enclosing one is taken.
+fn light_medium(scene: &Scene, origin: &Origin) -> Option<u32> {
+    let geo = &scene.geometry;
+    let start = match origin {
+        Origin::Point { position, .. } => *position,
+        Origin::Area { prims, .. } => {
+            let prim = *prims.first()? as usize;
+            let v = geo.verts(prim);
+            let centroid = (v[0] + v[1] + v[2]) / 3.0;
+            let size = (v[1] - v[0]).length().max((v[2] - v[0]).length());
+            // Just in front of the triangle, where its light goes.
+            centroid + geo.normal(prim) * (1e-4 * size)
+        }
+    };
+    // A direction unlikely to run along an edge or face of a modelled scene.
+    let dir = Vec3A::new(0.5407, 0.6238, 0.5643).normalize();
+    let mut crossings = vec![0u32; scene.surfaces.len()];
+    let (mut from, mut skip) = (start, crate::geometry::NO_PRIM);
+    // Every step moves past a hit, so the walk ends; the cap only guards against a pathology.
+    for _ in 0..1_000_000 {
+        let Some(hit) = geo.intersect(from, dir, f32::INFINITY, skip) else { break };
+        crossings[geo.surface_of(hit.prim as usize) as usize] += 1;
+        let (p, err) = geo.hit_point(&hit);
+        from = geo.spawn(p, err, hit.prim, dir);
+        skip = hit.prim;
+    }
+    (0..scene.surfaces.len())
+        .find(|&s| {
+            crossings[s] % 2 == 1 && matches!(scene.material_of(s), crate::scene::Material::Dielectric { .. })
+        })
+        .map(|s| s as u32)
 }

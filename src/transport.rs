@@ -271,7 +271,8 @@ impl Kernel<'_> {
             let mut dir = birth.dir;
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
-            let mut medium: Option<u32> = None;
+            // A light inside glass or water emits into it.
+            let mut medium: Option<u32> = if DIELECTRIC { self.emitter.medium_of(birth.light) } else { None };
             loop {
                 out.counters.rays += 1;
                 let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {

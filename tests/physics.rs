@@ -164,6 +164,50 @@ fn lambertian_transmitter_splits_reflectance_and_transmittance() {
 }
 
 #[test]
+fn a_lamp_inside_an_absorbing_medium_emits_into_it() {
+    // An isotropic 1 W point lamp at the centre of a tank of index-matched "water" (n = 1, so no
+    // surface reflects or bends; α = 1/m), an absorbing plate 0.5 m below it. The plate receives
+    // only direct light: ∫ I e^{−α r} cosθ/r² dA with I = 1/(4π) W/sr. The lamp's first segment
+    // ends on the plate, not on the tank, so only knowing the lamp is inside the water (found by
+    // ray parity when the scene is set up) attenuates it.
+    let f = run(
+        r#"
+        [materials.water]
+        type = "dielectric"
+        ior = 1.0
+        absorption_per_m = 1.0
+        [[surfaces]]
+        name = "tank"
+        material = "water"
+        shape = { type = "box", min = [-1, -1, -1], max = [1, 1, 1] }
+        [[surfaces]]
+        name = "plate"
+        material = "absorber"
+        shape = { type = "quad", corners = [[-0.4, -0.5, -0.4], [0.4, -0.5, -0.4], [0.4, -0.5, 0.4], [-0.4, -0.5, 0.4]] }
+        [[lights]]
+        name = "lamp"
+        shape = { type = "point", position = [0, 0, 0] }
+        power_w = 1
+        "#,
+        200_000,
+        9,
+    );
+    // Midpoint rule on a 400 × 400 grid: the integrand is smooth, the error far below 1e-5.
+    let (h, a, n) = (0.5f64, 0.4f64, 400);
+    let cell = 2.0 * a / n as f64;
+    let mut expected = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let (x, z) = (-a + (i as f64 + 0.5) * cell, -a + (j as f64 + 0.5) * cell);
+            let r = (x * x + z * z + h * h).sqrt();
+            expected += (-r).exp() * (h / r) / (r * r) * cell * cell / (4.0 * std::f64::consts::PI);
+        }
+    }
+    let p = surface(&f, "plate");
+    assert_z("plate under a lamp in water", p.incident_w, expected, p.incident_w_stderr, 4.0);
+}
+
+#[test]
 fn absorbing_medium_attenuates_the_path_to_an_immersed_object() {
     // A beam enters a water tank (n = 1.33, α = 1/m) at normal incidence through its top face and
     // crosses 1 m of water to an absorbing plate lying inside on the bottom: it arrives with

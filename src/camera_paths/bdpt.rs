@@ -187,6 +187,7 @@ impl ImageKernel<'_> {
         );
         y0.axis = lp.axis;
         y0.delta = e.is_collimated(light);
+        y0.medium = e.medium_of(light);
         path.push(y0);
         let origin = if lp.normal == Vec3A::ZERO { lp.point } else { self.geo().spawn(lp.point, lp.err, lp.prim, dir) };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
@@ -195,6 +196,7 @@ impl ImageKernel<'_> {
             origin,
             dir,
             lp.prim,
+            y0.medium,
             beta,
             pdf_dir,
             self.max_scatterings + 1,
@@ -225,6 +227,7 @@ impl ImageKernel<'_> {
             cam.position,
             dir,
             NO_PRIM,
+            None,
             Lanes::ONE,
             pdf,
             self.max_scatterings + 2,
@@ -234,8 +237,8 @@ impl ImageKernel<'_> {
         );
     }
 
-    /// Extends `path` (which holds its endpoint) by sampling until it escapes, is absorbed or
-    /// has `max_len` vertices, recording each vertex's forward density and its predecessor's
+    /// Extends `path` (which holds its endpoint, in `medium`) by sampling until it escapes, is
+    /// absorbed or has `max_len` vertices, recording each vertex's forward density and its predecessor's
     /// reverse density.
     #[allow(clippy::too_many_arguments)]
     fn random_walk<const SPECTRAL: bool, const DIELECTRIC: bool>(
@@ -245,6 +248,7 @@ impl ImageKernel<'_> {
         mut origin: Vec3A,
         mut dir: Vec3A,
         mut skip: u32,
+        mut medium: Option<u32>,
         mut beta: Lanes,
         mut pdf_dir: f64,
         max_len: usize,
@@ -253,7 +257,6 @@ impl ImageKernel<'_> {
         counters: &mut Counters,
     ) {
         let geo = self.geo();
-        let mut medium: Option<u32> = None;
         while path.len() < max_len {
             counters.rays += 1;
             let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
