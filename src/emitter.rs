@@ -39,7 +39,14 @@ struct EmitLight {
     /// ∫S dλ over the wavelength range.
     spectrum_integral: f64,
     /// The dielectric the light sits inside (emits into), if any: its photons' first medium.
-    medium: Option<u32>,
+    medium: LightMedium,
+}
+
+/// Which dielectric a light emits into: one for the whole light, or one per emitting triangle
+/// (parallel to `Origin::Area::prims`) when its parts lie in different media.
+enum LightMedium {
+    Uniform(Option<u32>),
+    PerTriangle(Vec<Option<u32>>),
 }
 
 /// A photon at birth.
@@ -109,7 +116,8 @@ impl Emitter {
                 let xyz = cie.integrate(&l.spectrum, range);
                 let norm = l.spectrum.integral(range) * cie.y_integral(range);
                 let grey_xyz = Vec3A::new((xyz[0] / norm) as f32, (xyz[1] / norm) as f32, (xyz[2] / norm) as f32);
-                let medium = if scene.effects.refraction { light_medium(scene, &origin) } else { None };
+                let medium =
+                    if scene.effects.refraction { light_medium(scene, &origin) } else { LightMedium::Uniform(None) };
                 EmitLight {
                     medium,
                     origin,
@@ -135,9 +143,19 @@ impl Emitter {
         }
     }
 
-    /// The dielectric light `light` sits inside, if any: the medium of its photons' first segment.
-    pub fn medium_of(&self, light: usize) -> Option<u32> {
-        self.lights[light].medium
+    /// The dielectric that light `light` emits into from its triangle `prim` (NO_PRIM for a point
+    /// light), if any: the medium of its photons' first segment.
+    #[inline]
+    pub fn medium_at(&self, light: usize, prim: u32) -> Option<u32> {
+        let l = &self.lights[light];
+        match (&l.medium, &l.origin) {
+            (LightMedium::Uniform(m), _) => *m,
+            // `prims` is ascending (collected in index order).
+            (LightMedium::PerTriangle(media), Origin::Area { prims, .. }) => {
+                prims.binary_search(&prim).ok().and_then(|i| media[i])
+            }
+            (LightMedium::PerTriangle(_), Origin::Point { .. }) => None,
+        }
     }
 
     /// Samples one photon from the uniform numbers `u` (see `EmitSample`). With `SPECTRAL` false
@@ -331,26 +349,43 @@ fn direction(d: Distribution, n: Vec3A, u1: f32, u2: f32) -> Vec3A {
     }
 }
 
-/// The dielectric surface enclosing a light's emitting side, by parity: a ray from a point just
-/// in front of the light crosses each closed surface an odd number of times only if the point is
-/// inside it. Nested dielectrics are not supported, so the first enclosing one is taken.
-fn light_medium(scene: &Scene, origin: &Origin) -> Option<u32> {
+/// The dielectric enclosing each emitting point of a light, by parity: a ray from a point just
+/// in front of it crosses a closed surface an odd number of times only if the point is inside.
+/// Area lights are judged triangle by triangle (a lamp may straddle a water surface). Nested
+/// dielectrics are not supported, so the first enclosing one is taken.
+fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
     let geo = &scene.geometry;
-    let start = match origin {
-        Origin::Point { position, .. } => *position,
+    match origin {
+        Origin::Point { position, .. } => LightMedium::Uniform(enclosing_dielectric(scene, *position, NO_PRIM)),
         Origin::Area { prims, .. } => {
-            let prim = *prims.first()? as usize;
-            let v = geo.verts(prim);
-            let centroid = (v[0] + v[1] + v[2]) / 3.0;
-            let size = (v[1] - v[0]).length().max((v[2] - v[0]).length());
-            // Just in front of the triangle, where its light goes.
-            centroid + geo.normal(prim) * (1e-4 * size)
+            let media: Vec<Option<u32>> = prims
+                .iter()
+                .map(|&prim| {
+                    let v = geo.verts(prim as usize);
+                    let centroid = (v[0] + v[1] + v[2]) / 3.0;
+                    // Rounding bound of the centroid; `spawn` then steps off the triangle's front.
+                    let err = (v[0].abs() + v[1].abs() + v[2].abs()) * (4.0 * f32::EPSILON);
+                    let n = geo.normal(prim as usize);
+                    enclosing_dielectric(scene, geo.spawn(centroid, err, prim, n), prim)
+                })
+                .collect();
+            match media.first() {
+                Some(&first) if media.iter().all(|&m| m == first) => LightMedium::Uniform(first),
+                Some(_) => LightMedium::PerTriangle(media),
+                None => LightMedium::Uniform(None),
+            }
         }
-    };
+    }
+}
+
+/// The dielectric surface that `start` lies inside, if any (ray parity; `skip` is the triangle
+/// the point sits on).
+fn enclosing_dielectric(scene: &Scene, start: Vec3A, skip: u32) -> Option<u32> {
+    let geo = &scene.geometry;
     // A direction unlikely to run along an edge or face of a modelled scene.
     let dir = Vec3A::new(0.5407, 0.6238, 0.5643).normalize();
     let mut crossings = vec![0u32; scene.surfaces.len()];
-    let (mut from, mut skip) = (start, crate::geometry::NO_PRIM);
+    let (mut from, mut skip) = (start, skip);
     // Every step moves past a hit, so the walk ends; the cap only guards against a pathology.
     for _ in 0..1_000_000 {
         let Some(hit) = geo.intersect(from, dir, f32::INFINITY, skip) else { break };
@@ -360,8 +395,51 @@ fn light_medium(scene: &Scene, origin: &Origin) -> Option<u32> {
         skip = hit.prim;
     }
     (0..scene.surfaces.len())
-        .find(|&s| {
-            crossings[s] % 2 == 1 && matches!(scene.material_of(s), crate::scene::Material::Dielectric { .. })
-        })
+        .find(|&s| crossings[s] % 2 == 1 && matches!(scene.material_of(s), crate::scene::Material::Dielectric { .. }))
         .map(|s| s as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_triangle_of_a_lamp_straddling_a_water_surface_emits_into_its_own_side() {
+        // A box lamp half under a water surface (y = 0): the triangles below emit into the water,
+        // those above into the air; the side faces are split at their diagonals, so a face may
+        // have one triangle each way (judged by its centroid).
+        let toml = r#"
+            [materials.water]
+            type = "dielectric"
+            ior = 1.33
+            absorption_per_m = 1.0
+            [[surfaces]]
+            name = "tank"
+            material = "water"
+            shape = { type = "box", min = [-1, -1, -1], max = [1, 0, 1] }
+            [[lights]]
+            name = "lamp"
+            shape = { type = "box", min = [-0.2, -0.3, -0.2], max = [0.2, 0.3, 0.2] }
+            power_w = 1
+        "#;
+        let scene = crate::scene::load_str(std::path::Path::new("straddle.toml"), toml).unwrap();
+        let emitter = Emitter::new(&scene);
+        let geo = &scene.geometry;
+        // The geometry is stored recentred: find the water level there, as the tank's top.
+        let tank = (0..geo.len()).filter(|&p| geo.surface_of(p) == 0);
+        let level = tank.flat_map(|p| geo.verts(p)).map(|v| v.y).fold(f32::MIN, f32::max);
+        let (mut under, mut over) = (0, 0);
+        for prim in (0..geo.len() as u32).filter(|&p| geo.surface_of(p as usize) == 1) {
+            let v = geo.verts(prim as usize);
+            let centroid_y = (v[0].y + v[1].y + v[2].y) / 3.0;
+            let expected = (centroid_y < level).then_some(0);
+            assert_eq!(emitter.medium_at(0, prim), expected, "triangle {prim}, centroid y {centroid_y}");
+            if expected.is_some() {
+                under += 1
+            } else {
+                over += 1
+            }
+        }
+        assert!(under >= 2 && over >= 2, "{under} under, {over} over");
+    }
 }

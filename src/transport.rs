@@ -272,7 +272,8 @@ impl Kernel<'_> {
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
             // A light inside glass or water emits into it.
-            let mut medium: Option<u32> = if DIELECTRIC { self.emitter.medium_of(birth.light) } else { None };
+            let mut medium: Option<u32> =
+                if DIELECTRIC { self.emitter.medium_at(birth.light, birth.prim) } else { None };
             loop {
                 out.counters.rays += 1;
                 let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {

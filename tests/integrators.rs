@@ -295,3 +295,58 @@ fn bdpt_and_path_tracing_agree_through_absorbing_water() {
     println!("image mean Y: path {path:?}, bdpt {bdpt:?}, z {z:.2}");
     assert!(z.abs() < 4.0, "through absorbing water: path {path:?} vs bdpt {bdpt:?}: z = {z:.2}");
 }
+
+/// A lamp under water (α rising from 0.2/m at 400 nm to 3/m at 700 nm), beaming down (cos⁵⁰θ)
+/// onto a white plate in the same tank, beside a white back wall, seen from outside through the
+/// water. The wall is lit almost only by the plate.
+const LAMP_IN_WATER_SCENE: &str = r#"
+[camera]
+position = [0, 0.3, 3]
+look_at = [0, -0.4, -0.9]
+up = [0, 1, 0]
+fov_deg = 25
+resolution = [32, 32]
+
+[materials.water]
+type = "dielectric"
+ior = 1.33
+absorption_per_m = { table = [[400, 0.2], [700, 3.0]] }
+
+[materials.white]
+type = "lambertian"
+reflectance = 0.8
+
+[[surfaces]]
+name = "tank"
+material = "water"
+shape = { type = "box", min = [-1, -1, -1], max = [1, 0.5, 1] }
+
+[[surfaces]]
+name = "plate"
+material = "white"
+shape = { type = "quad", corners = [[-0.6, -0.9, -0.6], [-0.6, -0.9, 0.6], [0.6, -0.9, 0.6], [0.6, -0.9, -0.6]] }
+
+[[surfaces]]
+name = "wall"
+material = "white"
+shape = { type = "quad", corners = [[-0.95, -0.95, -0.9], [0.95, -0.95, -0.9], [0.95, 0.4, -0.9], [-0.95, 0.4, -0.9]] }
+
+[[lights]]
+name = "lamp"
+shape = { type = "quad", corners = [[-0.2, 0.2, -0.2], [0.2, 0.2, -0.2], [0.2, 0.2, 0.2], [-0.2, 0.2, 0.2]] }
+power_w = 10
+distribution = { cosine_power = 50 }
+"#;
+
+#[test]
+fn path_and_bdpt_agree_on_a_lamp_under_water() {
+    // Every light path starts in the water. The path tracer's shadow rays from the plate to the
+    // lamp cross it and must be attenuated (without that, z = −67 here); BDPT's light subpaths
+    // must start in it, or its plate-to-wall connections carry unattenuated light (z = 34). With
+    // both, z = −0.50 at these counts and seeds. Independent streams: z of the difference.
+    let (_, path, _) = render(LAMP_IN_WATER_SCENE, Integrator::Path, 400_000, 4);
+    let (_, bdpt, _) = render(LAMP_IN_WATER_SCENE, Integrator::Bdpt, 400_000, 5);
+    let z = (bdpt.0 - path.0) / (path.1 * path.1 + bdpt.1 * bdpt.1).sqrt();
+    println!("image mean Y: path {path:?}, bdpt {bdpt:?}, z {z:.2}");
+    assert!(z.abs() < 4.0, "lamp under water: path {path:?} vs bdpt {bdpt:?}: z = {z:.2}");
+}

@@ -187,7 +187,7 @@ impl ImageKernel<'_> {
         );
         y0.axis = lp.axis;
         y0.delta = e.is_collimated(light);
-        y0.medium = e.medium_of(light);
+        y0.medium = e.medium_at(light, lp.prim);
         path.push(y0);
         let origin = if lp.normal == Vec3A::ZERO { lp.point } else { self.geo().spawn(lp.point, lp.err, lp.prim, dir) };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
