@@ -361,12 +361,11 @@ fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
             let media: Vec<Option<u32>> = prims
                 .iter()
                 .map(|&prim| {
-                    let v = geo.verts(prim as usize);
-                    let centroid = (v[0] + v[1] + v[2]) / 3.0;
-                    // Rounding bound of the centroid; `spawn` then steps off the triangle's front.
-                    let err = (v[0].abs() + v[1].abs() + v[2].abs()) * (4.0 * f32::EPSILON);
-                    let n = geo.normal(prim as usize);
-                    enclosing_dielectric(scene, geo.spawn(centroid, err, prim, n), prim)
+                    // The centroid with its rounding bound, stepped off the triangle's front.
+                    let b = [1.0 / 3.0; 3];
+                    let (centroid, err) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b });
+                    let front = geo.spawn(centroid, err, prim, geo.normal(prim as usize));
+                    enclosing_dielectric(scene, front, prim)
                 })
                 .collect();
             match media.first() {

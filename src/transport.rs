@@ -293,10 +293,8 @@ impl Kernel<'_> {
                 // Beer–Lambert: crossing an absorbing medium over distance t, a photon keeps the
                 // fraction exp(−α t) (analog: survives with that probability); the rest is
                 // absorbed by the medium, tallied to its surface. The medium is the dielectric the
-                // photon last refracted into, or, for one born inside, the one it reaches from inside.
-                let segment_medium =
-                    if DIELECTRIC { medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface)) } else { None };
-                if let Some(m) = segment_medium {
+                // photon last refracted into, or the one its light sits in (`Emitter::medium_at`).
+                if let Some(m) = medium {
                     if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = materials[m as usize] {
                         let t = hit.t as f64;
                         let keep = (-alpha.eval(lambda) * t).exp();

@@ -261,7 +261,7 @@ impl ImageKernel<'_> {
             counters.rays += 1;
             let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
             let Arrival { surface, material, n, is_dielectric } =
-                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, dir, medium, wl, &mut beta);
+                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, medium, wl, &mut beta);
             let (p, err) = geo.hit_point(&hit);
             let index = path.len();
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);

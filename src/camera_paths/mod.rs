@@ -427,15 +427,13 @@ impl<'a> ImageKernel<'a> {
         film
     }
 
-    /// The surface `hit` lies on, seen by a ray travelling along `dir`. Crossing an absorbing
-    /// medium, `beta` keeps exp(−α(λ)t) per lane (Beer–Lambert). The medium is the dielectric
-    /// the subpath last refracted into, or, for one that starts inside, the one it reaches from
-    /// inside (as in the particle tracer).
+    /// The surface `hit` lies on. Crossing an absorbing medium, `beta` keeps exp(−α(λ)t) per
+    /// lane (Beer–Lambert). The medium is the dielectric the subpath last refracted into, or the
+    /// one its light sits in (the camera is outside).
     #[inline]
     fn arrive<const SPECTRAL: bool, const DIELECTRIC: bool>(
         &self,
         hit: &crate::geometry::Hit,
-        dir: Vec3A,
         medium: Option<u32>,
         wl: &Wavelengths,
         beta: &mut Lanes,
@@ -446,11 +444,8 @@ impl<'a> ImageKernel<'a> {
         let material = self.materials[surface as usize];
         let n = geo.normal(prim);
         let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
-        if DIELECTRIC {
-            let segment_medium = medium.or((is_dielectric && dir.dot(n) > 0.0).then_some(surface));
-            if let Some(t) = segment_medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
-                *beta *= t;
-            }
+        if let Some(t) = medium.filter(|_| DIELECTRIC).and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
+            *beta *= t;
         }
         Arrival { surface, material, n, is_dielectric }
     }

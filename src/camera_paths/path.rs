@@ -51,7 +51,7 @@ impl ImageKernel<'_> {
             counters.rays += 1;
             let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
             let Arrival { surface, material, n, is_dielectric } =
-                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, dir, medium, &wl, &mut beta);
+                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, medium, &wl, &mut beta);
 
             // Emission seen along the ray, MIS-weighted against next-event estimation.
             if let Some(light) = self.surface_light[surface as usize] {
