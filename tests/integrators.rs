@@ -350,3 +350,112 @@ fn path_and_bdpt_agree_on_a_lamp_under_water() {
     println!("image mean Y: path {path:?}, bdpt {bdpt:?}, z {z:.2}");
     assert!(z.abs() < 4.0, "lamp under water: path {path:?} vs bdpt {bdpt:?}: z = {z:.2}");
 }
+
+/// A 100 W isotropic point light inside a closed white box 2 m across (ρ = 0.5, or in the
+/// spectral variant the Cornell box's red reflectance and lamp spectrum), seen directly by a
+/// camera 1 m in front of it, 0.12 m left of and 0.08 m above the optical axis.
+fn point_light_box(spectral: bool) -> String {
+    let (reflectance, spectrum) = if spectral {
+        let root = env!("CARGO_MANIFEST_DIR");
+        (
+            format!("{{ file = \"{root}/spectra/cornell_red.csv\" }}"),
+            format!("{{ file = \"{root}/spectra/cornell_light.csv\" }}"),
+        )
+    } else {
+        ("0.5".to_string(), "1.0".to_string())
+    };
+    format!(
+        r#"
+[camera]
+position = [0, 0, -0.8]
+look_at = [0, 0, 1]
+up = [0, 1, 0]
+fov_deg = 40
+resolution = [32, 32]
+
+[materials.white]
+type = "lambertian"
+reflectance = {reflectance}
+
+[[surfaces]]
+name = "box"
+material = "white"
+shape = {{ type = "box", min = [-1, -1, -1], max = [1, 1, 1] }}
+
+[[lights]]
+name = "bulb"
+shape = {{ type = "point", position = [-0.12, 0.08, 0.2] }}
+power_w = 100
+spectrum = {spectrum}
+"#
+    )
+}
+
+#[test]
+fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
+    // No camera ray can hit a point light, so the path tracer must connect the camera to it; the
+    // light tracer's emission splat and BDPT's s = 1, t = 1 strategy do the same. The light's
+    // pixel j then holds I/(d² A_pix cos³θ_c) (see `film`) on top of the wall behind it. Before
+    // the path tracer did this, its light pixel read the wall alone (0.0052 against 33.063).
+    // Closed form, independent of `CameraModel`: image-right is −x (looking along +z, y up).
+    let (cam, light) = ([0.0f64, 0.0, -0.8], [-0.12f64, 0.08, 0.2]);
+    let v = [light[0] - cam[0], light[1] - cam[1], light[2] - cam[2]];
+    let d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let cos_c = v[2] / d2.sqrt();
+    let half = (20.0f64).to_radians().tan();
+    let a_pix = (2.0 * half / 32.0).powi(2);
+    let (sx, sy) = (-v[0] / v[2] / half, v[1] / v[2] / half);
+    let (col, row) = (((sx + 1.0) * 16.0) as usize, ((1.0 - sy) * 16.0) as usize);
+    let pixel = row * 32 + col;
+    // Y per nm: a flat spectrum spreads the 100 W evenly over the wavelength range.
+    let range = scene(&point_light_box(false)).simulation.wavelength_range_nm;
+    let intensity = 100.0 / (4.0 * std::f64::consts::PI) / (range.1 - range.0);
+    let direct = intensity / (d2 * a_pix * cos_c.powi(3));
+    // The wall behind the light: the mean of the 8 pixels around it (the wall is 1.8 m behind, so
+    // its radiance is smooth over 3 pixels; its error there is far below the noise).
+    let ring: Vec<usize> = (0..9).filter(|&k| k != 4).map(|k| (row + k / 3 - 1) * 32 + col + k % 3 - 1).collect();
+    println!("closed form {direct}");
+    for spectral in [false, true] {
+        let toml = point_light_box(spectral);
+        assert_eq!(scene(&toml).effects.spectral, spectral);
+        let runs: Vec<(Integrator, (f64, f64), (f64, f64), (f64, f64))> =
+            [Integrator::Light, Integrator::Path, Integrator::Bdpt]
+                .into_iter()
+                .enumerate()
+                .map(|(k, i)| {
+                    let (img, mean, _) = render(&toml, i, 200_000, 21 + k as u64);
+                    let at = region(&img, &[pixel]);
+                    let wall = region(&img, &ring);
+                    println!("spectral {spectral} {i:?}: light pixel {at:?}, wall {wall:?}, image {mean:?}");
+                    (i, at, wall, mean)
+                })
+                .collect();
+        // Independent estimates (different seeds): z of each difference over its standard
+        // error. The pixel's and the image's estimates are means of many independent samples
+        // (or film batches), close to normal, so |z| < 4 fails falsely with probability 6e-5
+        // per comparison (12 here); the seeds are fixed, so a pass is reproducible.
+        for a in 0..3 {
+            for b in a + 1..3 {
+                let (ia, pa, _, ma) = runs[a];
+                let (ib, pb, _, mb) = runs[b];
+                let z = (pa.0 - pb.0) / (pa.1.powi(2) + pb.1.powi(2)).sqrt();
+                assert!(z.abs() < 4.0, "spectral {spectral}: light pixel {ia:?} {pa:?} vs {ib:?} {pb:?}: z = {z:.2}");
+                let z = (ma.0 - mb.0) / (ma.1.powi(2) + mb.1.powi(2)).sqrt();
+                assert!(z.abs() < 4.0, "spectral {spectral}: image {ia:?} {ma:?} vs {ib:?} {mb:?}: z = {z:.2}");
+            }
+        }
+        if !spectral {
+            // Grey: the direct part is the same in every sample (no noise), so the pixel less
+            // its surround is the closed form within the wall's noise; 1e-5 relative covers the
+            // f32 rounding of the film.
+            for (i, at, wall, _) in &runs {
+                let excess = at.0 - wall.0;
+                let bound = 4.0 * (at.1.powi(2) + wall.1.powi(2)).sqrt() + 1e-5 * direct;
+                assert!(
+                    (excess - direct).abs() < bound,
+                    "{i:?}: light pixel {at:?} less wall {wall:?} = {excess}, closed form {direct}"
+                );
+            }
+        }
+    }
+}

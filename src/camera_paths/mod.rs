@@ -25,7 +25,7 @@ use std::ops::{Mul, MulAssign};
 
 use crate::emitter::Emitter;
 use crate::film::{CameraModel, FilmBatch};
-use crate::geometry::Geometry;
+use crate::geometry::{Geometry, RayEnd};
 use crate::material::{fresnel_dielectric, reflect};
 use crate::sampling::{cosine_hemisphere, Sampler};
 use crate::scene::{Material, Scene};
@@ -165,6 +165,15 @@ impl LaneXyz {
             }
         } else {
             self.0[0] += emitter.grey_xyz(light) * v.0[0] as f32;
+        }
+    }
+
+    /// Adds an XYZ that does not depend on the wavelengths to every lane, so that it comes out of
+    /// `resolve` whole whether or not secondary lanes are dropped.
+    #[inline]
+    pub fn add_exact(&mut self, xyz: Vec3A) {
+        for lane in &mut self.0 {
+            *lane += xyz;
         }
     }
 
@@ -338,6 +347,40 @@ pub struct ImageKernel<'a> {
     dispersive: Vec<bool>,
     /// Most scattering vertices on a path (the particle tracer's max_bounces + 1).
     max_scatterings: usize,
+    /// Path tracing: the point lights the camera sees directly (empty for BDPT, whose t = 1
+    /// strategy images them, and for scenes without point lights).
+    point_views: Vec<PointView>,
+}
+
+/// A point light in the camera's view with nothing in between: no camera ray can hit it, so its
+/// pixel gets the light tracer's emission splat deterministically (`ImageKernel::point_views`).
+#[derive(Clone, Copy, Debug)]
+struct PointView {
+    pixel: usize,
+    /// The light's part of the pixel's value (mean radiance over its footprint, see `film`):
+    /// Φ · p(ω)/(d² A_pix cos³θ_c), ω toward the camera, times the light's colour weights
+    /// ∫S·(x̄,ȳ,z̄)/(∫S·∫ȳ). Nothing on the segment depends on λ, so this is exactly what the
+    /// wavelength lanes would estimate, in spectral transport as in grey.
+    xyz: Vec3A,
+}
+
+/// The point lights that project into the image with a clear line to the camera, once per run.
+/// Like the light tracer's emission splat: no medium attenuates the segment, since the camera is
+/// outside every dielectric and a visible segment crosses no surface.
+fn point_views(scene: &Scene, emitter: &Emitter, camera: &CameraModel) -> Vec<PointView> {
+    let geo = &scene.geometry;
+    (0..emitter.light_count())
+        .filter(|&l| emitter.is_point(l))
+        .filter_map(|light| {
+            let lp = emitter.sample_point(geo, light, [0.0; 3]);
+            let proj = camera.project(lp.point)?;
+            // Zero behind a directional lamp's lobe and for a collimated beam.
+            let p_dir = emitter.direction_pdf(light, lp.axis, proj.to_camera) as f64;
+            let value = emitter.power_w(light) * p_dir * proj.importance as f64;
+            (value > 0.0 && value.is_finite() && geo.visible(lp.end(), RayEnd::free(camera.position)))
+                .then(|| PointView { pixel: proj.pixel, xyz: emitter.grey_xyz(light) * value as f32 })
+        })
+        .collect()
 }
 
 /// A surface a camera or light subpath arrived at.
@@ -361,11 +404,13 @@ impl<'a> ImageKernel<'a> {
                 _ => false,
             })
             .collect();
+        let point_views = if integrator == Integrator::Path { point_views(scene, emitter, camera) } else { Vec::new() };
         ImageKernel {
             scene,
             emitter,
             camera,
             integrator,
+            point_views,
             materials,
             surface_light: scene.surfaces.iter().map(|s| s.light).collect(),
             dispersive,

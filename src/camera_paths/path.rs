@@ -4,7 +4,9 @@
 //! The two estimates of the same light are combined by multiple importance sampling with Veach's
 //! power heuristic, w_a = p_a²/(p_a² + p_b²) (Veach 1997, §9.2.4), both pdfs per solid angle.
 //! After the camera or a specular bounce (mirror, glass) only the hit counts: no light sample can
-//! pass a delta BSDF. Russian roulette on the albedo (see `Diffuse`) ends paths.
+//! pass a delta BSDF. Russian roulette on the albedo (see `Diffuse`) ends paths. A point light
+//! in view, which no camera ray can hit, is connected to the camera directly: its pixel's samples
+//! each carry its exact share, the light tracer's emission splat (`PointView`).
 
 use glam::Vec3A;
 
@@ -39,6 +41,12 @@ impl ImageKernel<'_> {
         let mut wl = Wavelengths::sample::<SPECTRAL>(self.emitter, range, s.uniform());
         let geo = self.geo();
         let mut acc = LaneXyz::default();
+        // A point light the camera sees (a delta in position: no ray hits it) gives every sample
+        // of its pixel its exact part I(ω)/(d² A_pix cos³θ_c) of the pixel's value, integrated
+        // over λ. Without point lights in view the list is empty.
+        for v in self.point_views.iter().filter(|v| v.pixel == pixel) {
+            acc.add_exact(v.xyz);
+        }
         let mut origin = self.camera.position;
         let mut dir = self.camera.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
         let mut skip = NO_PRIM;
