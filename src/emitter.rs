@@ -380,19 +380,7 @@ fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
 /// The dielectric surface that `start` lies inside, if any (ray parity; `skip` is the triangle
 /// the point sits on).
 fn enclosing_dielectric(scene: &Scene, start: Vec3A, skip: u32) -> Option<u32> {
-    let geo = &scene.geometry;
-    // A direction unlikely to run along an edge or face of a modelled scene.
-    let dir = Vec3A::new(0.5407, 0.6238, 0.5643).normalize();
-    let mut crossings = vec![0u32; scene.surfaces.len()];
-    let (mut from, mut skip) = (start, skip);
-    // Every step moves past a hit, so the walk ends; the cap only guards against a pathology.
-    for _ in 0..1_000_000 {
-        let Some(hit) = geo.intersect(from, dir, f32::INFINITY, skip) else { break };
-        crossings[geo.surface_of(hit.prim as usize) as usize] += 1;
-        let (p, err) = geo.hit_point(&hit);
-        from = geo.spawn(p, err, hit.prim, dir);
-        skip = hit.prim;
-    }
+    let crossings = scene.geometry.crossings(start, skip, scene.surfaces.len());
     (0..scene.surfaces.len())
         .find(|&s| crossings[s] % 2 == 1 && matches!(scene.material_of(s), crate::scene::Material::Dielectric { .. }))
         .map(|s| s as u32)

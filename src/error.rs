@@ -71,3 +71,45 @@ impl From<InputError> for Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Largest input file read (scene, mesh, spectrum table, IES file): a larger one is refused
+/// before it is read, so no input can exhaust memory.
+pub const MAX_INPUT_BYTES: u64 = 1 << 30;
+
+/// The bytes of an input file, at most `MAX_INPUT_BYTES`. `what` names it in messages.
+pub fn read_input(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
+    use std::io::Read;
+    let fail = |e: std::io::Error| InputError::new(path, "", None, format!("cannot read {what}: {e}"));
+    let file = std::fs::File::open(path).map_err(fail)?;
+    if file.metadata().map_err(fail)?.is_dir() {
+        return Err(InputError::new(path, "", None, format!("cannot read {what}: it is a folder")));
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_INPUT_BYTES + 1).read_to_end(&mut bytes).map_err(fail)?;
+    if bytes.len() as u64 > MAX_INPUT_BYTES {
+        return Err(InputError::new(
+            path,
+            "",
+            None,
+            format!("cannot read {what}: it is larger than {MAX_INPUT_BYTES} bytes"),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// An input file as text in which bytes that are not UTF-8 (a Latin-1 "°" in a comment, common
+/// in IES and OBJ files) become U+FFFD: they matter only where a parser reads them, and then its
+/// message names their line.
+pub fn read_text_lossy(path: &Path, what: &str) -> Result<String, InputError> {
+    Ok(String::from_utf8_lossy(&read_input(path, what)?).into_owned())
+}
+
+/// An input file that must be UTF-8 (TOML): a bad byte is an error naming its line.
+pub fn read_utf8(path: &Path, what: &str) -> Result<String, InputError> {
+    String::from_utf8(read_input(path, what)?).map_err(|e| {
+        let bytes = e.as_bytes();
+        let at = e.utf8_error().valid_up_to();
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        InputError::new(path, "", Some(line), format!("{what} is not UTF-8 text (byte {at} is not)"))
+    })
+}

@@ -87,6 +87,11 @@ pub fn estimates(scene: &crate::scene::Scene, r: &crate::run::RunResult) -> Vec<
         .collect()
 }
 
+/// `farfield_<stem>.<ext>`, the detector's output file.
+pub fn file_name(detector: &str, ext: &str) -> String {
+    format!("farfield_{}.{ext}", crate::maps::file_stem(detector))
+}
+
 /// farfield_<name>.csv: one row per bin.
 pub fn write_csv(dir: &Path, e: &FarFieldEstimate) -> Result<PathBuf, Error> {
     let [ng, nc] = e.detector.resolution;
@@ -100,18 +105,14 @@ pub fn write_csv(dir: &Path, e: &FarFieldEstimate) -> Result<PathBuf, Error> {
             s.push_str(&format!("{g0},{g1},{c},{},{w},{ws},{cd},{cds}\n", e.detector.solid_angle_sr(i)));
         }
     }
-    crate::output::write_atomic(
-        dir,
-        &format!("farfield_{}.csv", crate::maps::file_stem(&e.detector.name)),
-        s.as_bytes(),
-    )
+    crate::output::write_atomic(dir, &file_name(&e.detector.name, "csv"), s.as_bytes())
 }
 
 /// farfield_<name>.png: a polar candela diagram of the C0–C180 and C90–C270 planes (γ = 0, the
 /// nadir, pointing down; C0 and C90 to the right, C180 and C270 to the left).
 pub fn write_png(dir: &Path, e: &FarFieldEstimate, scene_name: &str) -> Result<PathBuf, Error> {
     use plotters::prelude::*;
-    let name = format!("farfield_{}.png", crate::maps::file_stem(&e.detector.name));
+    let name = file_name(&e.detector.name, "png");
     let err = |x: &dyn std::fmt::Display| Error::Other(format!("cannot draw {name}: {x}"));
     crate::output::register_plot_font();
     let [ng, nc] = e.detector.resolution;
@@ -152,6 +153,9 @@ pub fn write_png(dir: &Path, e: &FarFieldEstimate, scene_name: &str) -> Result<P
             .disable_mesh()
             .x_desc("cd (C0 / C90 side to the right)")
             .y_desc("cd (nadir down)")
+            // Distances from the centre: intensities are never negative on either side.
+            .x_label_formatter(&|v| format!("{}", v.abs()))
+            .y_label_formatter(&|v| format!("{}", v.abs()))
             .label_style(("sans-serif", 14))
             .axis_desc_style(("sans-serif", 15))
             .draw()
@@ -172,6 +176,12 @@ pub fn write_png(dir: &Path, e: &FarFieldEstimate, scene_name: &str) -> Result<P
             let a = (k as f64 * 30.0).to_radians();
             let ray = vec![(0.0, 0.0), (top * a.sin(), -top * a.cos())];
             chart.draw_series(LineSeries::new(ray, BLACK.mix(0.15))).map_err(|x| err(&x))?;
+            // γ from the nadir, on each side: 0° down, 90° level, 180° up.
+            let gamma = if k <= 6 { k * 30 } else { 360 - k * 30 };
+            let at = (0.9 * top * a.sin() - 0.03 * top, -0.9 * top * a.cos());
+            chart
+                .draw_series(std::iter::once(Text::new(format!("{gamma}°"), at, ("sans-serif", 13))))
+                .map_err(|x| err(&x))?;
         }
         for (pts, label, colour) in planes {
             chart

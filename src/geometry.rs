@@ -120,10 +120,11 @@ pub struct Geometry {
 impl Geometry {
     /// Builds the BVH and reorders triangles into its leaf order, so a BVH primitive id indexes
     /// the arrays directly.
-    pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Self {
+    /// Fails (with a message for the user) only on a tree too deep to trace.
+    pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Result<Self, String> {
         assert_eq!(tris.len(), surface.len());
         if tris.is_empty() {
-            return Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None };
+            return Ok(Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None });
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
         // An 8-wide BVH with quantised child boxes (obvhs CWBVH): one 80-byte node per 8
@@ -136,9 +137,17 @@ impl Geometry {
         let mut bvh = build_cwbvh(&padded, params, &mut Duration::default());
         // The traversal's stack holds 32 node groups and drops pushes beyond that (silently
         // skipping subtrees), so a deeper tree must not be traced. PLOC trees of real scenes are
-        // ~10 levels deep; only a pathological input could get there.
+        // ~10 levels deep; only a pathological input gets there (a disk of 10^5 segments: 131
+        // levels, its sliver triangles all overlapping at the centre).
         let depth = cwbvh_depth(&bvh);
-        assert!(depth < 32, "BVH of {} triangles is {depth} levels deep; the traversal handles 31", tris.len());
+        if depth >= 32 {
+            return Err(format!(
+                "the scene's {} triangles make a ray-tracing tree {depth} levels deep, and photon traces at most 31: \
+                 this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
+                 use fewer segments or a better-shaped mesh",
+                tris.len()
+            ));
+        }
         let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         // Triangles of one surface are given together, so each one's local index counts up.
@@ -157,7 +166,7 @@ impl Geometry {
             *idx = k as u32;
         }
         let tris = verts.iter().zip(&surface).map(|(v, &s)| PackedTriangle::new(v, s)).collect();
-        Geometry { tris, surface, local, bvh: Some(bvh) }
+        Ok(Geometry { tris, surface, local, bvh: Some(bvh) })
     }
 
     pub fn len(&self) -> usize {
@@ -189,6 +198,24 @@ impl Geometry {
     pub fn area(&self, prim: usize) -> f64 {
         let [a, b, c] = self.verts(prim).map(|v| v.as_dvec3());
         0.5 * (b - a).cross(c - a).length()
+    }
+
+    /// How often a ray from `start` (on primitive `skip`, or NO_PRIM) along a fixed direction
+    /// crosses each surface: odd for the closed surfaces that enclose `start` (ray parity). The
+    /// direction is one unlikely to run along an edge or face of a modelled scene.
+    pub fn crossings(&self, start: Vec3A, skip: u32, surfaces: usize) -> Vec<u32> {
+        let dir = Vec3A::new(0.5407, 0.6238, 0.5643).normalize();
+        let mut crossings = vec![0u32; surfaces];
+        let (mut from, mut skip) = (start, skip);
+        // Every step moves past a hit, so the walk ends; the cap only guards against a pathology.
+        for _ in 0..1_000_000 {
+            let Some(hit) = self.intersect(from, dir, f32::INFINITY, skip) else { break };
+            crossings[self.surface_of(hit.prim as usize) as usize] += 1;
+            let (p, err) = self.hit_point(&hit);
+            from = self.spawn(p, err, hit.prim, dir);
+            skip = hit.prim;
+        }
+        crossings
     }
 
     /// Closest hit along `origin + t·dir`, t in (0, t_max), ignoring primitive `skip` (the one the
@@ -675,7 +702,7 @@ mod tests {
                 Vec3A::new(1.0, 0.0, 0.3) * scale + Vec3A::splat(scale),
                 Vec3A::new(0.2, 1.0, 0.7) * scale + Vec3A::splat(scale),
             ];
-            let geo = Geometry::build(vec![tri], vec![0]);
+            let geo = Geometry::build(vec![tri], vec![0]).unwrap();
             let n = geo.normal(0);
             let hit = Hit { t: 1.0, prim: 0, b: [0.3, 0.3, 0.4] };
             let (p, err) = geo.hit_point(&hit);

@@ -20,6 +20,10 @@ use crate::error::InputError;
 /// Sub-cells per table cell along each angle.
 const SUB: usize = 4;
 
+/// Largest intensity accepted, in cd: the brightest searchlights reach 1e9 cd, and the table's
+/// flux integrals stay far from overflow.
+pub const MAX_CANDELA: f64 = 1e20;
+
 #[derive(Clone, Debug)]
 pub struct IesProfile {
     /// Vertical angles γ (degrees, increasing, within [0, 180]).
@@ -51,8 +55,7 @@ struct Token<'a> {
 
 impl IesProfile {
     pub fn read(path: &Path) -> Result<Self, InputError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| InputError::new(path, "", None, format!("cannot read IES file: {e}")))?;
+        let text = crate::error::read_text_lossy(path, "IES file")?;
         Self::parse(path, &text)
     }
 
@@ -162,6 +165,15 @@ impl IesProfile {
                 let (c, line) = next("a candela value")?;
                 if c < 0.0 {
                     return Err(err(line, format!("candela values must be >= 0, found {c}")));
+                }
+                if !(c * scale <= MAX_CANDELA) {
+                    return Err(err(
+                        line,
+                        format!(
+                            "a candela value of {:e} (after the multipliers) is beyond the {MAX_CANDELA:e} cd photon accepts (no luminaire comes near; its sums would overflow)",
+                            c * scale
+                        ),
+                    ));
                 }
                 column.push(c * scale);
             }

@@ -3,13 +3,12 @@
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 
 use clap::{Parser, Subcommand};
 
 use photon::error::Error;
 use photon::output;
-use photon::run::{apply_options, simulate, RunOptions};
+use photon::run::{apply_options, simulate, RunOptions, StopReason};
 use photon::scene::{self, LightShape, Scene};
 use photon::transport::{Estimator, TransportOptions};
 
@@ -21,18 +20,24 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
+#[command(after_help = EXIT_STATUS)]
 enum Command {
-    /// Simulate a scene and write flux.json, flux.csv and run.json.
+    /// Simulate a scene and write flux.json, flux.csv, run.json (and the image, maps, far field).
+    #[command(after_help = EXIT_STATUS)]
     Run {
+        /// The scene file (TOML).
         scene: PathBuf,
-        /// Output folder (default out/<scene-stem>/).
+        /// Output folder [default: out/<scene-stem>/].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Photons to trace [default: the scene's `[simulation] photons`, else 1000000]; with
+        /// --rel-error or --time, the most to trace (the scene's count then caps nothing).
         #[arg(long)]
         photons: Option<u64>,
+        /// Seed of the random streams [default: the scene's, else 1].
         #[arg(long)]
         seed: Option<u64>,
-        /// Worker threads (default: all cores). Results do not depend on it.
+        /// Worker threads [default: all cores]. Results do not depend on it.
         #[arg(long)]
         threads: Option<usize>,
         /// Stop when every tallied surface (or each --tally) reaches this relative standard error.
@@ -44,6 +49,8 @@ enum Command {
         /// Stop at this time budget, in seconds.
         #[arg(long = "time")]
         time: Option<f64>,
+        /// Scatterings after which a photon is dropped and counted as truncated [default: the
+        /// scene's, else 100000].
         #[arg(long = "max-bounces")]
         max_bounces: Option<u32>,
         /// Skip the camera image.
@@ -56,24 +63,32 @@ enum Command {
         quiet: bool,
     },
     /// Load and check a scene; print its surfaces, lights, triangle count, power and effects.
-    Info { scene: PathBuf },
-    /// Run a scene at doubling photon counts within a time budget: error against photons and seconds.
-    Converge {
+    Info {
+        /// The scene file (TOML).
         scene: PathBuf,
-        /// Surface to follow (default: the scene's [reference] surface, else the one receiving most).
+    },
+    /// Run a scene at doubling photon counts within a time budget: error against photons and seconds.
+    #[command(after_help = EXIT_STATUS)]
+    Converge {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Surface to follow [default: the scene's [reference] surface, else the one receiving most].
         #[arg(long)]
         tally: Option<String>,
-        /// Wall-clock budget in seconds.
+        /// Wall-clock budget in seconds for the whole command: the run and, when the scene gives
+        /// no closed form or has a camera, an independent reference run share it.
         #[arg(long, default_value_t = 20.0)]
         budget: f64,
         /// Known incident power of the tally (W), overriding the scene's [reference].
         #[arg(long)]
         reference: Option<f64>,
-        /// Output folder for convergence.csv and convergence.png (default out/<scene-stem>/).
+        /// Output folder for convergence.csv and convergence.png [default: out/<scene-stem>/].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Seed of the random streams [default: the scene's, else 1]; the reference run uses seed + 1.
         #[arg(long)]
         seed: Option<u64>,
+        /// Worker threads [default: all cores].
         #[arg(long)]
         threads: Option<usize>,
         #[command(flatten)]
@@ -83,14 +98,19 @@ enum Command {
         no_image: bool,
     },
     /// Run the built-in closed-form cases; exit 0 only if every case passes.
+    #[command(after_help = EXIT_STATUS)]
     Validate {
-        /// Smaller runs (under a minute on 2 cores) with looser error targets.
+        /// Smaller runs (about 10 s on 2 cores) with looser error targets.
         #[arg(long)]
         quick: bool,
+        /// Worker threads [default: all cores].
         #[arg(long)]
         threads: Option<usize>,
     },
 }
+
+const EXIT_STATUS: &str = "Exit status: 0 done; 1 failure; 2 bad scene or arguments (nothing is written); \
+3 stopped early by Ctrl-C, SIGTERM or SIGHUP, with the results so far written.";
 
 /// The transport options `run` and `converge` share.
 #[derive(clap::Args)]
@@ -117,6 +137,19 @@ impl TransportArgs {
     }
 }
 
+/// Set by Ctrl-C, SIGTERM or SIGHUP: the run stops and writes what it has.
+static INTERRUPT: AtomicBool = AtomicBool::new(false);
+
+/// How a command that did its work ended.
+enum Outcome {
+    Complete,
+    /// Stopped early by a signal; what it had is written.
+    Interrupted,
+}
+
+/// Exit status of a command stopped early by a signal, with its results written.
+const EXIT_INTERRUPTED: u8 = 3;
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
@@ -126,6 +159,13 @@ fn main() -> ExitCode {
             return if e.use_stderr() { ExitCode::from(2) } else { ExitCode::SUCCESS };
         }
     };
+    // The first signal asks the command to stop and write what it has; a second one, to stop now.
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPT.swap(true, Ordering::Relaxed) {
+            eprintln!("\nstopped at once: nothing more is written");
+            std::process::exit(130);
+        }
+    });
     let result = match cli.command {
         Command::Run {
             scene,
@@ -156,7 +196,7 @@ fn main() -> ExitCode {
             };
             run(&scene, out, &opts, quiet)
         }
-        Command::Info { scene } => info(&scene),
+        Command::Info { scene } => info(&scene).map(|()| Outcome::Complete),
         Command::Validate { quick, threads } => validate(quick, threads),
         Command::Converge { scene, tally, budget, reference, out, seed, threads, transport, no_image } => {
             let opts = RunOptions {
@@ -172,7 +212,8 @@ fn main() -> ExitCode {
         }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(Outcome::Complete) => ExitCode::SUCCESS,
+        Ok(Outcome::Interrupted) => ExitCode::from(EXIT_INTERRUPTED),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(e.exit_code() as u8)
@@ -180,71 +221,47 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) -> Result<(), Error> {
+fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) -> Result<Outcome, Error> {
     let mut scene = load_warn(scene_path)?;
     let chosen = apply_options(&mut scene, opts)?;
-    // The scene and options are sound: only now is anything created on disk.
+    // Everything that can be checked is checked before the first photon: the scene, the options,
+    // and every output file's name in the output folder.
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
-    std::fs::create_dir_all(&out_dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
-
-    let interrupt = Arc::new(AtomicBool::new(false));
-    let flag = interrupt.clone();
-    // A second Ctrl-C is not caught again: the handler only sets the flag once per process.
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-
-    let result = simulate(&scene, opts, &chosen, &interrupt)?;
-    let flux = output::flux(&scene, &result);
-    let mut info = output::run_info(&scene, &result, &flux);
-    output::write_json(&out_dir, "flux.json", &flux)?;
-    output::write_atomic(&out_dir, "flux.csv", output::flux_csv(&flux).as_bytes())?;
-    if let Some(film) = &result.film {
-        let image = film.image(result.emitted_w);
-        output::write_exr(&out_dir, &image)?;
-        output::write_png(&out_dir, &image)?;
-        info.image_mean_y = Some(film.mean_y(result.emitted_w));
-        info.image_pixel_rel_error = Some(output::pixel_rel_error(&image));
-        if film.film_batches() < 2 {
-            eprintln!(
-                "warning: fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0"
-            );
-        }
-        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
-            eprintln!(
-                "warning: some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
-            );
-        }
+    let image = scene.camera.is_some() && scene.effects.camera;
+    let staged = output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image))?;
+    let result = simulate(&scene, opts, &chosen, &INTERRUPT)?;
+    let report = output::write_run(staged.path(), &scene, &result)?;
+    staged.commit(output::is_run_output)?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
     }
-    let maps = photon::maps::estimates(&scene, &result);
-    if !maps.is_empty() {
-        let dir = out_dir.join("maps");
-        std::fs::create_dir_all(&dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", dir.display())))?;
-        for m in &maps {
-            photon::maps::write_exr(&dir, m)?;
-            photon::maps::write_png(&dir, m, &scene.stem())?;
-        }
-    }
-    for e in photon::farfield::estimates(&scene, &result) {
-        photon::farfield::write_csv(&out_dir, &e)?;
-        photon::farfield::write_png(&out_dir, &e, &scene.stem())?;
-    }
-    output::write_spectra(&out_dir, &scene, &result)?;
-    output::write_json(&out_dir, "run.json", &info)?;
     if !quiet {
-        print!("{}", output::summary_table(&flux, &info));
-        println!("wrote {}", out_dir.display());
+        print!("{}", output::summary_table(&report.flux, &report.info));
+        println!("wrote {}: {}", out_dir.display(), report.files.join(", "));
     }
-    Ok(())
+    Ok(match result.stop_reason {
+        StopReason::Interrupted => Outcome::Interrupted,
+        _ => Outcome::Complete,
+    })
 }
 
-fn validate(quick: bool, threads: Option<usize>) -> Result<(), Error> {
-    if threads == Some(0) {
-        return Err(Error::Usage("--threads must be at least 1".into()));
+fn validate(quick: bool, threads: Option<usize>) -> Result<Outcome, Error> {
+    if threads.is_some_and(|t| t == 0 || t > photon::run::MAX_THREADS) {
+        return Err(Error::Usage(format!("--threads must be between 1 and {}", photon::run::MAX_THREADS)));
     }
     let start = std::time::Instant::now();
-    let cases = photon::validate::run_all(quick, threads)?;
-    print!("{}", photon::validate::report(&cases, start.elapsed().as_secs_f64()));
-    if cases.iter().all(|c| c.passed()) {
-        Ok(())
+    use std::io::Write as _;
+    print!("{}", photon::validate::header());
+    let _ = std::io::stdout().flush();
+    let (cases, complete) = photon::validate::run_all(quick, threads, &INTERRUPT, &mut |c| {
+        print!("{}", photon::validate::line(c));
+        let _ = std::io::stdout().flush();
+    })?;
+    print!("{}", photon::validate::footer(&cases, start.elapsed().as_secs_f64(), complete));
+    if !complete {
+        Ok(Outcome::Interrupted)
+    } else if cases.iter().all(|c| c.passed()) {
+        Ok(Outcome::Complete)
     } else {
         Err(Error::Other("some validation cases failed".into()))
     }
@@ -257,9 +274,14 @@ fn converge(
     tally: Option<&str>,
     reference: Option<f64>,
     budget: f64,
-) -> Result<(), Error> {
+) -> Result<Outcome, Error> {
     if !(budget > 0.0 && budget.is_finite()) {
         return Err(Error::Usage(format!("--budget must be a positive number of seconds, found {budget}")));
+    }
+    if let Some(r) = reference {
+        if !(r > 0.0 && r.is_finite()) {
+            return Err(Error::Usage(format!("--reference must be a positive power in W, found {r}")));
+        }
     }
     let mut scene = load_warn(scene_path)?;
     if let Some(name) = tally {
@@ -268,16 +290,15 @@ fn converge(
         }
     }
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
-    let c = photon::converge::converge(&mut scene, opts, tally, reference, budget)?;
-    std::fs::create_dir_all(&out_dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", out_dir.display())))?;
+    const FILES: [&str; 2] = ["convergence.csv", "convergence.png"];
+    let staged = output::OutputDir::prepare(&out_dir, &FILES.map(String::from))?;
+    let c = photon::converge::converge(&mut scene, opts, tally, reference, budget, &INTERRUPT)?;
     print!("{}", c.table());
-    output::write_atomic(&out_dir, "convergence.csv", c.csv().as_bytes())?;
-    let tmp = out_dir.join(format!(".convergence.tmp{}.png", std::process::id()));
-    c.plot(&tmp, &format!("{}: error against time", scene.stem()))?;
-    std::fs::rename(&tmp, out_dir.join("convergence.png"))
-        .map_err(|e| Error::Other(format!("cannot write convergence.png: {e}")))?;
-    println!("wrote {}", out_dir.display());
-    Ok(())
+    output::write_atomic(staged.path(), FILES[0], c.csv().as_bytes())?;
+    c.plot(&staged.path().join(FILES[1]), &format!("{}: error against time", scene.stem()))?;
+    staged.commit(|_| false)?;
+    println!("wrote {}: {}", out_dir.display(), FILES.join(", "));
+    Ok(if c.interrupted { Outcome::Interrupted } else { Outcome::Complete })
 }
 
 /// Loads a scene and prints its warnings to stderr.
@@ -323,7 +344,13 @@ fn describe(scene: &Scene) -> String {
                 format!("area, {:.6} m²", scene.surfaces[*surface].area_m2)
             }
             LightShape::Point { position, .. } => {
-                format!("point at [{}, {}, {}] m", position.x, position.y, position.z)
+                let p = scene.file_coordinates(*position);
+                let unit = match scene.unit_m {
+                    u if u == 0.01 => "cm",
+                    u if u == 0.001 => "mm",
+                    _ => "m",
+                };
+                format!("point at [{}, {}, {}] {unit}", round_shown(p.x), round_shown(p.y), round_shown(p.z))
             }
         };
         let distribution = match &l.ies {
@@ -360,4 +387,10 @@ fn describe(scene: &Scene) -> String {
         s.push_str(&format!("detector: farfield {} {}×{} (gamma × C)\n", d.name, d.resolution[0], d.resolution[1]));
     }
     s
+}
+
+/// A coordinate as the user wrote it: 12 significant digits drop the rounding of the
+/// recentring (1.2999999999999998 -> 1.3).
+fn round_shown(x: f64) -> f64 {
+    format!("{x:.11e}").parse().unwrap_or(x)
 }

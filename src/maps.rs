@@ -296,6 +296,11 @@ pub fn file_stem(surface: &str) -> String {
     surface.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect()
 }
 
+/// The map file of a surface inside `maps/`: `<stem>.<ext>`.
+pub fn file_name(surface: &str, ext: &str) -> String {
+    format!("{}.{ext}", file_stem(surface))
+}
+
 /// maps/<surface>.exr: irradiance (W/m²), illuminance (lx) and their standard errors, f32, one
 /// pixel per texel, u to the right and v up (row 0 is the largest v).
 pub fn write_exr(dir: &std::path::Path, m: &MapEstimate) -> Result<std::path::PathBuf, crate::error::Error> {
@@ -313,7 +318,7 @@ pub fn write_exr(dir: &std::path::Path, m: &MapEstimate) -> Result<std::path::Pa
     ]));
     let layer = Layer::new((nu, nv), LayerAttributes::named(m.surface.as_str()), Encoding::FAST_LOSSLESS, channels);
     let mut bytes = std::io::Cursor::new(Vec::new());
-    let name = format!("{}.exr", file_stem(&m.surface));
+    let name = file_name(&m.surface, "exr");
     Image::from_layer(layer)
         .write()
         .non_parallel()
@@ -351,7 +356,7 @@ pub fn write_png(
     scene_name: &str,
 ) -> Result<std::path::PathBuf, crate::error::Error> {
     use plotters::prelude::*;
-    let name = format!("{}.png", file_stem(&m.surface));
+    let name = file_name(&m.surface, "png");
     let err = |e: &dyn std::fmt::Display| crate::error::Error::Other(format!("cannot draw {name}: {e}"));
     crate::output::register_plot_font();
     let (w, h) = (900u32, 720u32);
@@ -362,10 +367,18 @@ pub fn write_png(
         let root = root
             .titled(&format!("{scene_name}: illuminance on \"{}\" (lx)", m.surface), ("sans-serif", 22))
             .map_err(|e| err(&e))?;
-        let (left, right) = root.split_horizontally(w - 150);
+        let (left, right) = root.split_horizontally(w - 190);
         let ev = m.illuminance_lx();
-        let top = ev.iter().map(|x| x.0).fold(0.0, f64::max);
-        let top = if top > 0.0 { top } else { 1.0 };
+        // The scale spans the texels on the surface, lowest to highest: from 0 it would hide a
+        // desk's 300–420 lx variation in one colour.
+        let lit = || ev.iter().zip(&m.texel_area_m2).filter(|(_, &a)| a > 0.0).map(|(x, _)| x.0);
+        let (lo, hi) = (lit().fold(f64::INFINITY, f64::min), lit().fold(0.0, f64::max));
+        let (lo, hi) = match (lo, hi) {
+            (lo, hi) if hi > lo => (lo, hi),
+            (_, hi) if hi > 0.0 => (0.0, hi),
+            _ => (0.0, 1.0),
+        };
+        let shade = |v: f64| false_colour((v - lo) / (hi - lo));
         let [nu, nv] = m.resolution;
         let [su, sv] = m.size_m.unwrap_or([1.0, 1.0]);
         let (x_desc, y_desc) = match m.size_m {
@@ -390,8 +403,7 @@ pub fn write_png(
         chart
             .draw_series((0..nv).flat_map(|j| (0..nu).map(move |i| (i, j))).map(|(i, j)| {
                 let k = j * nu + i;
-                let colour =
-                    if m.texel_area_m2[k] > 0.0 { false_colour(ev[k].0 / top) } else { RGBColor(220, 220, 220) };
+                let colour = if m.texel_area_m2[k] > 0.0 { shade(ev[k].0) } else { RGBColor(220, 220, 220) };
                 let (du, dv) = (su / nu as f64, sv / nv as f64);
                 Rectangle::new(
                     [(i as f64 * du, j as f64 * dv), ((i + 1) as f64 * du, (j + 1) as f64 * dv)],
@@ -403,9 +415,9 @@ pub fn write_png(
         let mut bar = ChartBuilder::on(&right)
             .margin_top(15)
             .margin_bottom(60)
-            .margin_right(25)
-            .y_label_area_size(90)
-            .build_cartesian_2d(0.0..1.0, 0.0..top)
+            .margin_right(20)
+            .y_label_area_size(110)
+            .build_cartesian_2d(0.0..1.0, lo..hi)
             .map_err(|e| err(&e))?;
         bar.configure_mesh()
             .disable_mesh()
@@ -418,8 +430,8 @@ pub fn write_png(
             .map_err(|e| err(&e))?;
         let steps = 200;
         bar.draw_series((0..steps).map(|s| {
-            let (a, b) = (s as f64 / steps as f64 * top, (s + 1) as f64 / steps as f64 * top);
-            Rectangle::new([(0.0, a), (1.0, b)], false_colour((a + b) / (2.0 * top)).filled())
+            let at = |s: usize| lo + s as f64 / steps as f64 * (hi - lo);
+            Rectangle::new([(0.0, at(s)), (1.0, at(s + 1))], shade((at(s) + at(s + 1)) / 2.0).filled())
         }))
         .map_err(|e| err(&e))?;
         root.present().map_err(|e| err(&e))?;

@@ -237,14 +237,21 @@ pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<Pat
 /// The per-surface table printed at the end of a run.
 pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
     let width = f.surfaces.iter().map(|r| r.name.len()).max().unwrap_or(4).max(7);
-    let mut s = format!(
-        "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}  {:>12}\n",
-        "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err", "mean lx"
-    );
-    for r in &f.surfaces {
+    let mut s = String::new();
+    if f.surfaces.is_empty() {
+        s.push_str("no surfaces to tally (the scene has only point lights and detectors)\n");
+    } else {
         s.push_str(&format!(
-            "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8.2e}  {:>12.5e}\n",
-            r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, r.rel_error, r.illuminance_lx
+            "{:<width$}  {:>12}  {:>10}  {:>12}  {:>10}  {:>8}  {:>12}\n",
+            "surface", "incident W", "± stderr", "absorbed W", "± stderr", "rel err", "mean lx"
+        ));
+    }
+    for r in &f.surfaces {
+        // Nothing arrived: there is no relative error, and 0 would read as converged.
+        let rel = if r.incident_w > 0.0 { format!("{:.2e}", r.rel_error) } else { "-".into() };
+        s.push_str(&format!(
+            "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8}  {:>12.5e}\n",
+            r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, rel, r.illuminance_lx
         ));
     }
     let l = &f.ledger;
@@ -261,19 +268,25 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
             "image: mean Y {y:.6e} ± {se:.2e} W m^-2 sr^-1 nm^-1; pixel noise {px:.3e} (relative RMS)\n"
         ));
     }
+    let estimator = format!("{:?} estimator", info.transport_options.estimator).to_lowercase();
     let estimator = match &info.estimator_pilot {
-        Some(_) => format!("{:?} estimator (auto)", info.transport_options.estimator).to_lowercase(),
-        None => format!("{:?} estimator", info.transport_options.estimator).to_lowercase(),
+        Some(_) => format!("{estimator}, chosen by a pilot run"),
+        None => estimator,
     };
     s.push_str(&format!(
-        "{} photons in {:.2} s ({:.3e} photons/s, {} threads, {} transport, {estimator}), stopped by {:?}\n",
-        info.photons, info.wall_seconds, info.photons_per_second, info.threads, info.transport, info.stop_reason
+        "{} photons in {:.2} s ({} photons/s, {} threads, {} transport, {estimator}); stopped by {}\n",
+        info.photons,
+        info.wall_seconds,
+        crate::run::si(info.photons_per_second),
+        info.threads,
+        info.transport,
+        info.stop_reason.describe()
     ));
     s
 }
 
 /// image.exr: linear R, G, B (sRGB primaries, D65), Y (CIE 1931) and Y_var, f32.
-pub fn write_exr(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Error> {
+pub fn write_exr(dir: &Path, image: &crate::film::Image, layer_name: &str) -> Result<PathBuf, Error> {
     use exr::prelude::*;
     let (w, h) = (image.width, image.height);
     let plane = |c: usize| -> Vec<f32> { image.rgb.index_axis(ndarray::Axis(2), c).iter().copied().collect() };
@@ -284,7 +297,7 @@ pub fn write_exr(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Erro
         AnyChannel::new("Y", FlatSamples::F32(image.xyz.column(1).to_vec())),
         AnyChannel::new("Y_var", FlatSamples::F32(image.y_var.clone())),
     ]));
-    let layer = Layer::new((w, h), LayerAttributes::named("light_traced"), Encoding::FAST_LOSSLESS, channels);
+    let layer = Layer::new((w, h), LayerAttributes::named(layer_name), Encoding::FAST_LOSSLESS, channels);
     let mut bytes = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()
@@ -375,8 +388,280 @@ pub fn write_spectra(dir: &Path, scene: &Scene, r: &RunResult) -> Result<Vec<Pat
                 ase / width
             ));
         }
-        let name = format!("spectrum_{}.csv", crate::maps::file_stem(&s.name));
-        written.push(write_atomic(dir, &name, text.as_bytes())?);
+        written.push(write_atomic(dir, &spectrum_file_name(&s.name), text.as_bytes())?);
     }
     Ok(written)
+}
+
+/// The files `photon run` writes for `scene`, relative to the output folder: known before any
+/// photon is traced, so every name can be tried first (a name too long for the file system, a
+/// folder that cannot be written) instead of failing after the work.
+pub fn run_file_names(scene: &Scene, image: bool) -> Vec<String> {
+    let mut names: Vec<String> = ["flux.json", "flux.csv", "run.json"].map(String::from).into();
+    if image {
+        names.extend(["image.exr", "image.png"].map(String::from));
+    }
+    for s in &scene.surfaces {
+        if s.map.is_some() {
+            names.extend(["exr", "png"].map(|ext| format!("maps/{}", crate::maps::file_name(&s.name, ext))));
+        }
+        if s.spectrum_bins.is_some() {
+            names.push(spectrum_file_name(&s.name));
+        }
+    }
+    for d in &scene.detectors {
+        names.extend(["csv", "png"].map(|ext| crate::farfield::file_name(&d.name, ext)));
+    }
+    names
+}
+
+/// Whether `relative` (a path inside an output folder, with '/') is a file that `photon run`
+/// writes for some scene: such a file left by an earlier run is stale once a new run lands.
+pub fn is_run_output(relative: &str) -> bool {
+    let file = relative.rsplit('/').next().unwrap_or(relative);
+    match relative.split_once('/') {
+        Some(("maps", f)) => !f.contains('/') && (f.ends_with(".exr") || f.ends_with(".png")),
+        Some(_) => false,
+        None => {
+            matches!(file, "flux.json" | "flux.csv" | "run.json" | "image.exr" | "image.png")
+                || (file.starts_with("farfield_") && (file.ends_with(".csv") || file.ends_with(".png")))
+                || (file.starts_with("spectrum_") && file.ends_with(".csv"))
+        }
+    }
+}
+
+pub fn spectrum_file_name(surface: &str) -> String {
+    format!("spectrum_{}.csv", crate::maps::file_stem(surface))
+}
+
+/// An output folder being written. Files go into a hidden staging folder first (inside the
+/// target when it exists, else beside it, so the final renames stay on one file system), and
+/// `commit` moves them into place: a new folder appears whole by one rename; into an existing
+/// one each file is renamed into place and the stale outputs of an earlier run that this one did
+/// not write (`stale` decides which files count) are removed. Dropped uncommitted, nothing is
+/// left behind.
+pub struct OutputDir {
+    target: PathBuf,
+    staging: PathBuf,
+    target_existed: bool,
+    committed: bool,
+}
+
+impl OutputDir {
+    /// Creates the staging folder and tries every file name in it (`names`, relative, '/'
+    /// separated). Any failure here is the user's to fix (a file where the folder should be, no
+    /// permission, a name too long), so it is a usage error, reported before any work.
+    pub fn prepare(target: &Path, names: &[String]) -> Result<Self, Error> {
+        let usage = |what: String| Error::Usage(format!("--out {}: {what}", target.display()));
+        let target_existed = match std::fs::metadata(target) {
+            Ok(m) if m.is_dir() => true,
+            Ok(_) => return Err(usage("is a file, not a folder".into())),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+            Err(e) => return Err(usage(format!("cannot be read: {e}"))),
+        };
+        let tag = format!(".photon-staging-{}", std::process::id());
+        let staging = if target_existed {
+            target.join(tag)
+        } else {
+            let parent = match target.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                _ => PathBuf::from("."),
+            };
+            std::fs::create_dir_all(&parent)
+                .map_err(|e| usage(format!("cannot create the folder {}: {e}", parent.display())))?;
+            let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            parent.join(format!(".{name}{tag}"))
+        };
+        let _ = std::fs::remove_dir_all(&staging);
+        std::fs::create_dir(&staging).map_err(|e| usage(format!("cannot write there: {e}")))?;
+        let dir = OutputDir { target: target.to_path_buf(), staging, target_existed, committed: false };
+        for name in names {
+            let probe = dir.staging.join(name);
+            let tried = (|| {
+                if let Some(p) = probe.parent() {
+                    std::fs::create_dir_all(p)?;
+                }
+                std::fs::File::create(&probe)?;
+                std::fs::remove_file(&probe)
+            })();
+            tried.map_err(|e| usage(format!("cannot write {name} there: {e}")))?;
+        }
+        Ok(dir)
+    }
+
+    /// Where to write the files now.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Moves the staged files into place (see the type's comment).
+    pub fn commit(mut self, stale: fn(&str) -> bool) -> Result<(), Error> {
+        let fail =
+            |e: std::io::Error| Error::Other(format!("cannot move the outputs into {}: {e}", self.target.display()));
+        if !self.target_existed {
+            // Empty subfolders from the name probes go; a folder appears only with files in it.
+            remove_empty_dirs(&self.staging);
+            std::fs::rename(&self.staging, &self.target).map_err(fail)?;
+            self.committed = true;
+            return Ok(());
+        }
+        let new = output_files(&self.staging).map_err(fail)?;
+        let old = output_files(&self.target).map_err(fail)?;
+        for f in old.iter().filter(|f| stale(f) && !new.contains(f)) {
+            std::fs::remove_file(self.target.join(f)).map_err(fail)?;
+        }
+        for f in &new {
+            let to = self.target.join(f);
+            if let Some(p) = to.parent() {
+                std::fs::create_dir_all(p).map_err(fail)?;
+            }
+            std::fs::rename(self.staging.join(f), to).map_err(fail)?;
+        }
+        let _ = std::fs::remove_dir_all(&self.staging);
+        if let Ok(maps) = std::fs::read_dir(self.target.join("maps")) {
+            if maps.count() == 0 {
+                let _ = std::fs::remove_dir(self.target.join("maps"));
+            }
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for OutputDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
+/// The files photon may have written in an output folder: those at its top level and in its
+/// `maps/` folder, as '/'-separated relative paths. Nothing deeper is looked at (an `--out .`
+/// must not walk the user's tree).
+fn output_files(dir: &Path) -> std::io::Result<Vec<String>> {
+    let mut out = Vec::new();
+    for (sub, prefix) in [(dir.to_path_buf(), ""), (dir.join("maps"), "maps/")] {
+        let entries = match std::fs::read_dir(&sub) {
+            Ok(e) => e,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !prefix.is_empty() => continue,
+            Err(e) => return Err(e),
+        };
+        for entry in entries {
+            let entry = entry?;
+            if !entry.file_type()?.is_dir() {
+                out.push(format!("{prefix}{}", entry.file_name().to_string_lossy()));
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn remove_empty_dirs(dir: &Path) {
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            if e.file_type().is_ok_and(|t| t.is_dir()) {
+                remove_empty_dirs(&e.path());
+                let _ = std::fs::remove_dir(e.path());
+            }
+        }
+    }
+}
+
+/// What `write_run` wrote and found.
+pub struct RunReport {
+    pub flux: Flux,
+    pub info: RunInfo,
+    /// The files written, relative to the output folder.
+    pub files: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+/// Every output file of a run, into `dir` (the staging folder of an `OutputDir`). Every number
+/// is checked finite first (f64 for the tables, f32 for the EXR images and maps), so a run either
+/// writes finite results or, when its scene's magnitudes leave no finite answer, nothing.
+pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, Error> {
+    let flux = flux(scene, r);
+    let mut info = run_info(scene, r, &flux);
+    let mut warnings = Vec::new();
+    let too_large = |what: &str, limit: &str| {
+        Error::Usage(format!(
+            "{}: {what} of this scene are not finite{limit}: its lights' power is too large for its \
+             size; lower `power_w` (or `power_lm`, `radiance`)",
+            scene.path.display()
+        ))
+    };
+    let json = serde_json::to_value(&flux).map_err(|e| Error::Other(format!("cannot encode flux.json: {e}")))?;
+    if !json_finite(&json) {
+        return Err(too_large("the tallies", ""));
+    }
+    let image = r.film.as_ref().map(|f| f.image(r.emitted_w));
+    let maps = crate::maps::estimates(scene, r);
+    let f32_limit = " in 32-bit floats (at most 3.4e38)";
+    if let Some(image) = &image {
+        let finite = |v: &f32| v.is_finite();
+        if !(image.rgb.iter().all(finite) && image.xyz.iter().all(finite) && image.y_var.iter().all(finite)) {
+            return Err(too_large("the image's values (or their variances)", f32_limit));
+        }
+    }
+    for m in &maps {
+        let fits = |v: &[(f64, f64)]| v.iter().all(|&(x, se)| (x as f32).is_finite() && (se as f32).is_finite());
+        if !(fits(&m.irradiance_w_m2()) && fits(&m.illuminance_lx())) {
+            return Err(too_large(&format!("the irradiance map of \"{}\"", m.surface), f32_limit));
+        }
+    }
+    let farfields = crate::farfield::estimates(scene, r);
+    let mut files = Vec::new();
+    let mut wrote = |p: PathBuf| files.push(p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().replace('\\', "/"));
+    wrote(write_json(dir, "flux.json", &flux)?);
+    wrote(write_atomic(dir, "flux.csv", flux_csv(&flux).as_bytes())?);
+    if let (Some(film), Some(image)) = (&r.film, &image) {
+        wrote(write_exr(dir, image, r.integrator.name())?);
+        wrote(write_png(dir, image)?);
+        info.image_mean_y = Some(film.mean_y(r.emitted_w));
+        info.image_pixel_rel_error = Some(pixel_rel_error(image)).filter(|v| v.is_finite());
+        if film.film_batches() < 2 {
+            warnings.push(
+                "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
+            );
+        }
+        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
+            warnings.push(format!(
+                "some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
+            ));
+        }
+    }
+    if !maps.is_empty() {
+        let maps_dir = dir.join("maps");
+        std::fs::create_dir_all(&maps_dir)
+            .map_err(|e| Error::Other(format!("cannot create {}: {e}", maps_dir.display())))?;
+        for m in &maps {
+            wrote(crate::maps::write_exr(&maps_dir, m)?);
+            wrote(crate::maps::write_png(&maps_dir, m, &scene.stem())?);
+        }
+    }
+    for e in &farfields {
+        wrote(crate::farfield::write_csv(dir, e)?);
+        wrote(crate::farfield::write_png(dir, e, &scene.stem())?);
+    }
+    for p in write_spectra(dir, scene, r)? {
+        wrote(p);
+    }
+    wrote(write_json(dir, "run.json", &info)?);
+    Ok(RunReport { flux, info, files, warnings })
+}
+
+/// No number of `v` is null (serde_json's NaN and infinity) or non-finite.
+fn json_finite(v: &serde_json::Value) -> bool {
+    match v {
+        serde_json::Value::Null => false,
+        serde_json::Value::Number(n) => n.as_f64().is_some_and(f64::is_finite),
+        serde_json::Value::Array(a) => a.iter().all(json_finite),
+        serde_json::Value::Object(o) => o.values().all(json_finite),
+        _ => true,
+    }
 }

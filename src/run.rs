@@ -53,6 +53,22 @@ pub enum StopReason {
     RelError,
     Time,
     Interrupted,
+    /// A `--rel-error` run without a photon cap whose targets no photon reached in
+    /// `MAX_BATCHES_WITHOUT_SIGNAL` batches.
+    NoSignal,
+}
+
+impl StopReason {
+    /// What stopped the run, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            StopReason::Photons => "the photon count",
+            StopReason::RelError => "the relative-error target",
+            StopReason::Time => "the time budget",
+            StopReason::Interrupted => "a signal (interrupted)",
+            StopReason::NoSignal => "giving up: no photon reached the targeted tallies",
+        }
+    }
 }
 
 pub struct RunResult {
@@ -81,7 +97,6 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
             return Err(Error::Usage("--photons must be at least 1".into()));
         }
         scene.simulation.photons = p;
-        scene.simulation.photons_given = true;
     }
     if let Some(s) = opts.seed {
         scene.simulation.seed = s;
@@ -182,9 +197,12 @@ pub fn simulate_observed(
     let start = Instant::now();
     let (transport, pilot) = match opts.transport.estimator {
         Estimator::Auto => {
+            // Judged on the particle tracer's outputs as the light tracer makes them, whichever
+            // integrator makes this run's image and whether or not it makes one: flux.json must
+            // not depend on that choice.
+            let pilot_camera = scene.camera.as_ref().map(CameraModel::new);
             let pilot = pool.install(|| {
-                let image = image_kernel.as_ref();
-                choose_estimator(scene, &emitter, light_camera, image, opts.transport, rel_error_surfaces)
+                choose_estimator(scene, &emitter, pilot_camera.as_ref(), opts.transport, rel_error_surfaces)
             });
             (TransportOptions { estimator: pilot.chosen, ..opts.transport }, Some(pilot))
         }
@@ -202,13 +220,18 @@ pub fn simulate_observed(
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
 
-    // With an accuracy or time target the photon count is only a cap, and only when it was given.
+    // A command-line accuracy or time target is obeyed: only a command-line photon count caps it
+    // (the scene file's `photons` is the default for runs without one).
     let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let cap = if open_ended && !scene.simulation.photons_given { u64::MAX } else { scene.simulation.photons };
+    let cap = match opts.photons {
+        Some(p) => p,
+        None if open_ended => u64::MAX,
+        None => scene.simulation.photons,
+    };
     let total_batches = cap.div_ceil(BATCH_PHOTONS);
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
 
-    let progress = make_progress(opts.progress, (cap != u64::MAX).then_some(cap));
+    let progress = opts.progress.then(|| RunProgress::new(opts, (cap != u64::MAX).then_some(cap), start)).flatten();
     let mut tallies = Tallies::for_scene(scene);
     let mut stop = StopReason::Photons;
     // Workers take batch indices in order and send results back; this thread merges them in
@@ -281,6 +304,9 @@ pub fn simulate_observed(
             let (b, result) = match rx.recv_timeout(POLL) {
                 Ok(received) => received,
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                    if let Some(p) = &progress {
+                        p.update(&tallies, None);
+                    }
                     if let Some(reason) = stop_now(want) {
                         stop = reason;
                         break 'merge;
@@ -311,16 +337,18 @@ pub fn simulate_observed(
                     emitted_w: emitter.total_power_w,
                     threads,
                 });
+                let worst =
+                    opts.rel_error.and(tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model()));
                 if let Some(p) = &progress {
-                    p.set_position(tallies.photons);
+                    p.update(&tallies, worst);
                 }
                 if let Some(target) = opts.rel_error {
-                    let worst = tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model());
                     if worst.is_none() && cap == u64::MAX && want >= MAX_BATCHES_WITHOUT_SIGNAL {
                         eprintln!(
                             "warning: after {} photons no photon has reached the tallies --rel-error targets; stopping",
                             tallies.photons
                         );
+                        stop = StopReason::NoSignal;
                         break 'merge;
                     }
                     if want >= min_batches && worst.is_some_and(|e| e <= target) {
@@ -342,7 +370,7 @@ pub fn simulate_observed(
         return Err(Error::Other(e));
     }
     if let Some(p) = progress {
-        p.finish_and_clear();
+        p.bar.finish_and_clear();
     }
     Ok(RunResult {
         tallies,
@@ -378,15 +406,17 @@ pub struct PilotFigures {
     pub photons: u64,
     pub rel_variance_per_photon: f64,
     pub rays_per_photon: f64,
-    /// Predicted time per unit of accuracy, ∝ 1/FOM: variance per photon × rays per photon
-    /// (the latter including a path or BDPT image's rays per sample).
+    /// Predicted time per unit of accuracy, ∝ 1/FOM: variance per photon × rays per photon.
     pub cost: f64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct EstimatorPilot {
     pub chosen: Estimator,
+    /// None (left out of run.json) when the pilot saw no tally and no image scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub analog: Option<PilotFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub expected: Option<PilotFigures>,
 }
 
@@ -398,11 +428,12 @@ pub struct EstimatorPilot {
 /// seed. Rays are a fair clock: in the Cornell box a ray, with its share of the photon's other
 /// work, took 370–475 ns under either estimator, with and without the image. The variance is
 /// that of the run's noisiest output: the worst relative one over `surfaces` (incident and
-/// absorbed, as `--rel-error` judges), and the light-traced image's pixel noise where the light
-/// tracer makes one (it is usually far the noisier, so it decides there); a tally
-/// one estimator reached and the other did not counts, for the one that missed it, as if a
-/// single photon had scored (relative variance per photon N). With a path or BDPT image, whose
-/// rays do not depend on the estimator, their number per sample is added to both costs.
+/// absorbed, as `--rel-error` judges), and the light-traced image's pixel noise when the scene
+/// has a camera (it is usually far the noisier, so it decides there); a tally one estimator
+/// reached and the other did not counts, for the one that missed it, as if a single photon had
+/// scored (relative variance per photon N). The camera is judged as the light tracer's image
+/// whichever integrator makes the run's image, and with `--no-image` too, so that flux.json
+/// depends on neither.
 /// Expected-value absorption wins closed, bright scenes (the furnace: 30× the FOM); analog
 /// survival wins open or dark ones, where expected-value photons pay for long paths that carry
 /// little (the Cornell box).
@@ -410,7 +441,6 @@ pub fn choose_estimator(
     scene: &Scene,
     emitter: &Emitter,
     camera: Option<&CameraModel>,
-    image: Option<&ImageKernel>,
     transport: TransportOptions,
     surfaces: &[usize],
 ) -> EstimatorPilot {
@@ -440,12 +470,6 @@ pub fn choose_estimator(
         (total, image.filter(|v| v.is_finite()))
     };
     let (analog, expected) = rayon::join(|| pilot(Estimator::Analog), || pilot(Estimator::Expected));
-    // The camera integrator's own rays per sample (one sample per photon); batch 0's stream, only counted.
-    let image_rays = image.map_or(0.0, |img| {
-        let mut c = crate::tally::Counters::default();
-        img.trace_batch(0, part, &mut c, None);
-        (c.rays + c.shadow_rays) as f64 / part as f64
-    });
     let model = transport.error_model();
     let worst = |t: &Tallies, other: &Tallies| -> Option<f64> {
         let mut worst: Option<f64> = None;
@@ -472,7 +496,7 @@ pub fn choose_estimator(
             (a, b) => a.or(b),
         };
         v.map(|v| {
-            let rays = (t.counters.rays + t.counters.shadow_rays) as f64 / t.photons as f64 + image_rays;
+            let rays = (t.counters.rays + t.counters.shadow_rays) as f64 / t.photons as f64;
             PilotFigures { photons: t.photons, rel_variance_per_photon: v, rays_per_photon: rays, cost: v * rays }
         })
     };
@@ -484,22 +508,79 @@ pub fn choose_estimator(
     EstimatorPilot { chosen, analog: a, expected: e }
 }
 
-fn make_progress(enabled: bool, total: Option<u64>) -> Option<indicatif::ProgressBar> {
-    use std::io::IsTerminal;
-    if !enabled || !std::io::stderr().is_terminal() {
-        return None;
+/// The progress bar on a terminal. The share of the run done is the largest of photons/cap,
+/// elapsed/time budget and (target/worst relative error)², the last because the error falls as
+/// N^(-1/2); so the bar and its ETA follow whichever budget will stop the run.
+struct RunProgress {
+    bar: indicatif::ProgressBar,
+    cap: Option<u64>,
+    time_s: Option<f64>,
+    rel_error: Option<f64>,
+    start: Instant,
+    /// The latest worst relative error, kept for the updates between batches.
+    worst: std::cell::Cell<Option<f64>>,
+}
+
+/// Steps of the bar: per mille.
+const PROGRESS_STEPS: u64 = 1000;
+
+impl RunProgress {
+    fn new(opts: &RunOptions, cap: Option<u64>, start: Instant) -> Option<Self> {
+        use std::io::IsTerminal;
+        if !std::io::stderr().is_terminal() {
+            return None;
+        }
+        let style = indicatif::ProgressStyle::with_template("{bar:30} {percent:>3}%  {msg}  eta {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+        let bar = indicatif::ProgressBar::new(PROGRESS_STEPS).with_style(style);
+        bar.enable_steady_tick(std::time::Duration::from_millis(250));
+        let worst = std::cell::Cell::new(None);
+        Some(RunProgress { bar, cap, time_s: opts.time_s, rel_error: opts.rel_error, start, worst })
     }
-    let bar = match total {
-        Some(n) => indicatif::ProgressBar::new(n).with_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} photons  {per_sec}  eta {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        ),
-        None => indicatif::ProgressBar::new_spinner().with_style(
-            indicatif::ProgressStyle::with_template("{spinner} {pos} photons  {per_sec}  {elapsed}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
-        ),
+
+    /// `worst`: the worst relative error after a merged batch, or None between batches.
+    fn update(&self, tallies: &Tallies, worst: Option<f64>) {
+        if worst.is_some() {
+            self.worst.set(worst);
+        }
+        let worst = self.worst.get();
+        let elapsed = self.start.elapsed().as_secs_f64();
+        let mut done: f64 = 0.0;
+        if let Some(cap) = self.cap {
+            done = done.max(tallies.photons as f64 / cap as f64);
+        }
+        if let Some(t) = self.time_s {
+            done = done.max(elapsed / t);
+        }
+        if let (Some(target), Some(worst)) = (self.rel_error, worst) {
+            done = done.max((target / worst).powi(2));
+        }
+        self.bar.set_position((done.min(1.0) * PROGRESS_STEPS as f64) as u64);
+        let rate = if elapsed > 0.0 { tallies.photons as f64 / elapsed } else { 0.0 };
+        let mut msg = format!("{} photons, {}/s", si(tallies.photons as f64), si(rate));
+        if let (Some(target), Some(worst)) = (self.rel_error, worst) {
+            msg.push_str(&format!(", rel. error {worst:.2e} (target {target:.1e})"));
+        }
+        self.bar.set_message(msg);
+    }
+}
+
+/// `x` with three significant digits and an SI prefix: 1.23 M.
+pub fn si(x: f64) -> String {
+    let (v, prefix) = match x.abs() {
+        a if a >= 1e9 => (x / 1e9, " G"),
+        a if a >= 1e6 => (x / 1e6, " M"),
+        a if a >= 1e3 => (x / 1e3, " k"),
+        _ => (x, ""),
     };
-    Some(bar)
+    let digits = if v.abs() >= 100.0 {
+        0
+    } else if v.abs() >= 10.0 {
+        1
+    } else {
+        2
+    };
+    format!("{v:.digits$}{prefix}")
 }
 
 impl RunResult {

@@ -21,16 +21,16 @@ use crate::tally::{HistoryScores, Tallies};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Estimator {
-    /// Whichever of the two below a pilot batch predicts to give the tallies the higher figure of
-    /// merit in this scene (see `run::choose_estimator`); resolved before any batch of the run.
+    // The doc comments are the command line's help: they speak to users.
+    /// A short pilot of each picks the one that reaches a given accuracy sooner in this scene
     #[default]
     Auto,
-    /// A photon survives a hit with probability equal to the albedo; its whole weight ends in one place.
+    /// A photon survives each hit with probability equal to the albedo
     Analog,
-    /// Expected-value absorption: at each hit the share weight·(1 − albedo) is tallied as absorbed
-    /// and the photon carries weight·albedo on. Below `ROULETTE_WEIGHT` it plays Russian roulette
-    /// with the albedo as survival probability, so the lost weight is booked as absorbed where it
-    /// dies and the ledger stays exact.
+    /// At each hit the absorbed share of the weight is tallied and the rest carried on
+    /// (Russian roulette below weight 0.1)
+    // Below `ROULETTE_WEIGHT` the photon survives with the albedo as probability, so the lost
+    // weight is booked as absorbed where it dies and the ledger stays exact.
     Expected,
 }
 

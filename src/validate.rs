@@ -6,7 +6,7 @@
 use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::DVec3;
 
@@ -59,7 +59,7 @@ impl CaseResult {
 }
 
 /// Where the cases write their meshes, and how hard they try.
-struct Ctx {
+struct Ctx<'a> {
     dir: PathBuf,
     /// Photon multiplier: 10 for --quick, 100 for the full run.
     scale: u64,
@@ -67,9 +67,11 @@ struct Ctx {
     loose: f64,
     threads: Option<usize>,
     seed: u64,
+    /// Set by a signal: the case in hand stops within a batch and is dropped.
+    interrupt: &'a AtomicBool,
 }
 
-impl Ctx {
+impl Ctx<'_> {
     fn run(&self, toml: &str, photons: u64) -> Result<(Scene, RunResult), Error> {
         let mut scene = load_str(&self.dir.join("case.toml"), toml)?;
         let opts = RunOptions {
@@ -79,7 +81,7 @@ impl Ctx {
             ..Default::default()
         };
         let chosen = apply_options(&mut scene, &opts)?;
-        let r = simulate(&scene, &opts, &chosen, &AtomicBool::new(false))?;
+        let r = simulate(&scene, &opts, &chosen, self.interrupt)?;
         Ok((scene, r))
     }
 
@@ -98,8 +100,15 @@ fn case(name: &str, (measured, stderr): (f64, f64), expected: f64, rel_target: f
     CaseResult { name: name.into(), measured, expected, stderr, rel_target, exact: None, note: note.into() }
 }
 
-/// Runs every case. `quick` sizes them to finish in well under a minute on 2 cores.
-pub fn run_all(quick: bool, threads: Option<usize>) -> Result<Vec<CaseResult>, Error> {
+/// Runs every case, calling `on_case` as each is done (`quick` sizes them to finish in well under
+/// a minute on 2 cores). A signal (`interrupt`) stops it within a batch: the cases done so far
+/// come back, with `false` for "not complete"; the group of cases in hand is dropped.
+pub fn run_all(
+    quick: bool,
+    threads: Option<usize>,
+    interrupt: &AtomicBool,
+    on_case: &mut dyn FnMut(&CaseResult),
+) -> Result<(Vec<CaseResult>, bool), Error> {
     let dir = std::env::temp_dir().join(format!("photon-validate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", dir.display())))?;
     let ctx = Ctx {
@@ -108,50 +117,81 @@ pub fn run_all(quick: bool, threads: Option<usize>) -> Result<Vec<CaseResult>, E
         loose: if quick { 10f64.sqrt() } else { 1.0 },
         threads,
         seed: 1,
+        interrupt,
     };
+    type Group = fn(&Ctx, &mut Vec<CaseResult>) -> Result<(), Error>;
+    let groups: [Group; 9] = [
+        view_factors,
+        inverse_square,
+        furnaces,
+        integrating_sphere,
+        image_normalisation,
+        mirrors,
+        dielectrics,
+        dispersion,
+        |ctx, out| {
+            lecture_integral(ctx, out);
+            Ok(())
+        },
+    ];
     let mut out = Vec::new();
-    let result = (|| {
-        view_factors(&ctx, &mut out)?;
-        inverse_square(&ctx, &mut out)?;
-        furnaces(&ctx, &mut out)?;
-        integrating_sphere(&ctx, &mut out)?;
-        image_normalisation(&ctx, &mut out)?;
-        mirrors(&ctx, &mut out)?;
-        dielectrics(&ctx, &mut out)?;
-        dispersion(&ctx, &mut out)?;
-        lecture_integral(&ctx, &mut out);
-        Ok::<(), Error>(())
-    })();
+    let mut complete = true;
+    let mut result = Ok(());
+    for group in groups {
+        let before = out.len();
+        result = group(&ctx, &mut out);
+        if interrupt.load(Ordering::Relaxed) {
+            out.truncate(before);
+            complete = false;
+            result = Ok(());
+            break;
+        }
+        if result.is_err() {
+            break;
+        }
+        for c in &out[before..] {
+            on_case(c);
+        }
+    }
     let _ = std::fs::remove_dir_all(&dir);
-    result.map(|_| out)
+    result.map(|_| (out, complete))
 }
 
-/// One aligned line per case, then `N passed, M failed`.
-pub fn report(cases: &[CaseResult], seconds: f64) -> String {
-    let w = cases.iter().map(|c| c.name.len()).max().unwrap_or(10);
-    let mut s = format!(
-        "{:<w$}  {:>13}  {:>13}  {:>10}  {:>7}  {:>8}  {:>8}  result\n",
+/// Width of the case-name column.
+const NAME_WIDTH: usize = 44;
+
+pub fn header() -> String {
+    format!(
+        "{:<NAME_WIDTH$}  {:>13}  {:>13}  {:>10}  {:>7}  {:>8}  {:>8}  result\n",
         "case", "measured", "expected", "stderr", "z", "rel.err", "target"
-    );
-    for c in cases {
-        let _ = writeln!(
-            s,
-            "{:<w$}  {:>13.6e}  {:>13.6e}  {:>10.3e}  {:>7.2}  {:>8.2e}  {:>8}  {}{}",
-            c.name,
-            c.measured,
-            c.expected,
-            c.stderr,
-            c.z(),
-            c.rel_error(),
-            match c.exact {
-                Some(tol) => format!("±{tol:.0e}"),
-                None => format!("{:.1e}", c.rel_target),
-            },
-            if c.passed() { "PASS" } else { "FAIL" },
-            if c.note.is_empty() { String::new() } else { format!("  ({})", c.note) }
-        );
+    )
+}
+
+/// One aligned line for a case.
+pub fn line(c: &CaseResult) -> String {
+    format!(
+        "{:<NAME_WIDTH$}  {:>13.6e}  {:>13.6e}  {:>10.3e}  {:>7.2}  {:>8.2e}  {:>8}  {}{}\n",
+        c.name,
+        c.measured,
+        c.expected,
+        c.stderr,
+        c.z(),
+        c.rel_error(),
+        match c.exact {
+            Some(tol) => format!("±{tol:.0e}"),
+            None => format!("{:.1e}", c.rel_target),
+        },
+        if c.passed() { "PASS" } else { "FAIL" },
+        if c.note.is_empty() { String::new() } else { format!("  ({})", c.note) }
+    )
+}
+
+/// The time, then `N passed, M failed` (after a signal, a line saying the rest did not run).
+pub fn footer(cases: &[CaseResult], seconds: f64, complete: bool) -> String {
+    let mut s = format!("({seconds:.1} s)\n");
+    if !complete {
+        s.push_str("interrupted: the remaining cases did not run\n");
     }
-    let _ = writeln!(s, "({seconds:.1} s)");
     let passed = cases.iter().filter(|c| c.passed()).count();
     let _ = writeln!(s, "{} passed, {} failed", passed, cases.len() - passed);
     s

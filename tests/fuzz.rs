@@ -677,7 +677,10 @@ fn mutate_bytes(f: &mut Fuzz, text: &mut Vec<u8>, donor: &[u8]) -> String {
         }
         1 => {
             let i = f.below(n + 1);
-            let ins = f.pick(&["\n", "\0", "=", "[", "]", "\"", "#", ",", "{", "}", "-", ".", "e", "9", " ", "\u{feff}", "\r", "/", "\\"]);
+            let ins = f.pick(&[
+                "\n", "\0", "=", "[", "]", "\"", "#", ",", "{", "}", "-", ".", "e", "9", " ", "\u{feff}", "\r", "/",
+                "\\",
+            ]);
             text.splice(i..i, ins.bytes());
             format!("byte {i}: insert {ins:?}")
         }
@@ -778,8 +781,11 @@ fn mutate_toml(f: &mut Fuzz, text: &mut Vec<u8>) -> Option<String> {
         format!("line {}: `{old}` -> `{}`", i + 1, one_line(&lines[i]))
     } else if kind < 52 {
         // resolution-targeted (cameras, maps, detectors)
-        let res: Vec<usize> =
-            assigns.iter().filter(|(i, _)| String::from_utf8_lossy(&lines[*i]).contains("resolution")).map(|x| x.0).collect();
+        let res: Vec<usize> = assigns
+            .iter()
+            .filter(|(i, _)| String::from_utf8_lossy(&lines[*i]).contains("resolution"))
+            .map(|x| x.0)
+            .collect();
         if res.is_empty() {
             let t = TOML_TABLES[0].replace("RES", f.pick(RESOLUTIONS));
             lines.push(Vec::new());
@@ -790,14 +796,18 @@ fn mutate_toml(f: &mut Fuzz, text: &mut Vec<u8>) -> Option<String> {
             let old = one_line(&lines[i]);
             let s = String::from_utf8_lossy(&lines[i]).into_owned();
             let p = s.find("resolution").unwrap();
-            let new = format!("{}resolution = [{}]{}", &s[..p], f.pick(RESOLUTIONS), if s.contains('{') { " }" } else { "" });
+            let new =
+                format!("{}resolution = [{}]{}", &s[..p], f.pick(RESOLUTIONS), if s.contains('{') { " }" } else { "" });
             lines[i] = new.into_bytes();
             format!("line {}: `{old}` -> `{}`", i + 1, one_line(&lines[i]))
         }
     } else if kind < 58 {
         // rename
-        let names: Vec<usize> =
-            assigns.iter().filter(|(i, _)| String::from_utf8_lossy(&lines[*i]).trim_start().starts_with("name =")).map(|x| x.0).collect();
+        let names: Vec<usize> = assigns
+            .iter()
+            .filter(|(i, _)| String::from_utf8_lossy(&lines[*i]).trim_start().starts_with("name ="))
+            .map(|x| x.0)
+            .collect();
         let i = *names.get(f.below(names.len()))?;
         let old = one_line(&lines[i]);
         let new = if f.chance(0.3) {
@@ -838,7 +848,13 @@ fn mutate_toml(f: &mut Fuzz, text: &mut Vec<u8>) -> Option<String> {
         lines[a.0].extend_from_slice(&vb);
         lines[b.0].truncate(b.1);
         lines[b.0].extend_from_slice(&va);
-        format!("swap values of lines {} and {}: now `{}` / `{}`", a.0 + 1, b.0 + 1, one_line(&lines[a.0]), one_line(&lines[b.0]))
+        format!(
+            "swap values of lines {} and {}: now `{}` / `{}`",
+            a.0 + 1,
+            b.0 + 1,
+            one_line(&lines[a.0]),
+            one_line(&lines[b.0])
+        )
     } else if kind < 93 {
         // duplicate or delete a table (header to the next header)
         let heads: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].first() == Some(&b'[')).collect();
@@ -862,8 +878,21 @@ fn mutate_toml(f: &mut Fuzz, text: &mut Vec<u8>) -> Option<String> {
         let &(i, at) = strs.get(f.below(strs.len()))?;
         let old = one_line(&lines[i]);
         let v = f.pick(&[
-            "\"quad\"", "\"disk\"", "\"sphere\"", "\"box\"", "\"mesh\"", "\"point\"", "\"mirror\"", "\"dielectric\"",
-            "\"absorber\"", "\"lambertian\"", "\"bdpt\"", "\"path\"", "\"absorber\"", "\"white\"", "\"floor\"",
+            "\"quad\"",
+            "\"disk\"",
+            "\"sphere\"",
+            "\"box\"",
+            "\"mesh\"",
+            "\"point\"",
+            "\"mirror\"",
+            "\"dielectric\"",
+            "\"absorber\"",
+            "\"lambertian\"",
+            "\"bdpt\"",
+            "\"path\"",
+            "\"absorber\"",
+            "\"white\"",
+            "\"floor\"",
         ]);
         lines[i].truncate(at);
         lines[i].extend_from_slice(v.as_bytes());
@@ -875,9 +904,35 @@ fn mutate_toml(f: &mut Fuzz, text: &mut Vec<u8>) -> Option<String> {
 
 /// Numbers for OBJ, CSV and IES files.
 const TEXT_NUMBERS: &[&str] = &[
-    "NaN", "nan", "inf", "-inf", "1e309", "1e308", "-1e308", "0", "-0", "-1", "1e-300", "5e-324", "4294967296",
-    "8589934592", "18446744073709551615", "99999999999", "1e18", "10000", "10001", "3", "2", "1", "", "--1", "0x10",
-    "1,2", "9999", "-2147483648", "1e-9",
+    "NaN",
+    "nan",
+    "inf",
+    "-inf",
+    "1e309",
+    "1e308",
+    "-1e308",
+    "0",
+    "-0",
+    "-1",
+    "1e-300",
+    "5e-324",
+    "4294967296",
+    "8589934592",
+    "18446744073709551615",
+    "99999999999",
+    "1e18",
+    "10000",
+    "10001",
+    "3",
+    "2",
+    "1",
+    "",
+    "--1",
+    "0x10",
+    "1,2",
+    "9999",
+    "-2147483648",
+    "1e-9",
 ];
 
 /// Mutates the case; returns the log of what was done.
@@ -908,7 +963,8 @@ fn mutate(f: &mut Fuzz, input: &mut Input, donors: &[Vec<u8>]) -> Vec<String> {
                 .iter()
                 .filter(|a| scene_text.contains(Path::new(a.as_str()).file_name().unwrap().to_str().unwrap()))
                 .collect();
-            let file = if named.is_empty() { aux[f.below(aux.len())].clone() } else { named[f.below(named.len())].clone() };
+            let file =
+                if named.is_empty() { aux[f.below(aux.len())].clone() } else { named[f.below(named.len())].clone() };
             let text = input.files.get_mut(&file).unwrap();
             let d = if f.chance(0.3) {
                 Some(mutate_bytes(f, text, donor))
@@ -926,8 +982,18 @@ fn mutate(f: &mut Fuzz, input: &mut Input, donors: &[Vec<u8>]) -> Vec<String> {
                 mutate_number(f, text, TEXT_NUMBERS, restrict)
             } else if file.ends_with(".obj") && f.chance(0.4) {
                 let l = f.pick(&[
-                    "f 1 1 1", "f -100 2 3", "f 1/99 2 3", "f 0 1 2", "f 1 2", "vt nan 0", "v 1e308 1e308 1e308",
-                    "v 1e-300 0 0", "f 9223372036854775807 1 2", "f -9223372036854775808 1 2", "f 1/1 2 3", "f 1 2 3 4 5 6 7 8",
+                    "f 1 1 1",
+                    "f -100 2 3",
+                    "f 1/99 2 3",
+                    "f 0 1 2",
+                    "f 1 2",
+                    "vt nan 0",
+                    "v 1e308 1e308 1e308",
+                    "v 1e-300 0 0",
+                    "f 9223372036854775807 1 2",
+                    "f -9223372036854775808 1 2",
+                    "f 1/1 2 3",
+                    "f 1 2 3 4 5 6 7 8",
                 ]);
                 let mut lines = lines_of(text);
                 let at = f.below(lines.len() + 1);
@@ -935,7 +1001,8 @@ fn mutate(f: &mut Fuzz, input: &mut Input, donors: &[Vec<u8>]) -> Vec<String> {
                 *text = join_lines(&lines);
                 Some(format!("insert `{l}` before line {}", at + 1))
             } else if file.ends_with(".csv") && f.chance(0.3) {
-                let l = f.pick(&["500,nan", "1e308,1", "0,1", "500,1e308", "600,-0", "1e-300,0", "500", ",", "5e2,1,2"]);
+                let l =
+                    f.pick(&["500,nan", "1e308,1", "0,1", "500,1e308", "600,-0", "1e-300,0", "500", ",", "5e2,1,2"]);
                 let mut lines = lines_of(text);
                 let at = f.below(lines.len() + 1);
                 lines.insert(at, l.as_bytes().to_vec());
@@ -1028,7 +1095,9 @@ fn first_few(v: &[String]) -> String {
     s
 }
 
-/// Checks every number that would be written, and writes the outputs as `photon run` does.
+/// Writes the outputs as `photon run` does (staged, checked, committed) and checks every number
+/// written. A refusal (exit 2: the scene's magnitudes leave no finite answer) writes nothing
+/// and is no finding; any other failure after the simulation is one.
 fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path, findings: &mut Vec<Finding>) {
     fn push_nonfinite(findings: &mut Vec<Finding>, what: &str, bad: Vec<String>) {
         if !bad.is_empty() {
@@ -1039,96 +1108,63 @@ fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path,
             });
         }
     }
-    let mut nonfinite = |what: &str, bad: Vec<String>| push_nonfinite(findings, what, bad);
-    let flux = photon::output::flux(scene, result);
-    let mut info = photon::output::run_info(scene, result, &flux);
-    let mut bad = Vec::new();
-    nulls(&serde_json::to_value(&flux).unwrap(), "flux", &mut bad);
-    nonfinite("flux.json", bad);
-    nonfinite("flux.csv", csv_nonfinite(&photon::output::flux_csv(&flux)));
-    let image = result.film.as_ref().map(|film| {
-        let image = film.image(result.emitted_w);
-        info.image_mean_y = Some(film.mean_y(result.emitted_w));
-        info.image_pixel_rel_error = Some(photon::output::pixel_rel_error(&image));
-        let bad_in = |name: &str, xs: &mut dyn Iterator<Item = f32>| -> Vec<String> {
-            let (n, first) = xs.enumerate().filter(|(_, x)| !x.is_finite()).fold((0, None), |(n, f), (i, x)| (n + 1, f.or(Some((i, x)))));
-            first.map(|(i, x)| format!("{n} non-finite {name} values, first [{i}] = {x}")).into_iter().collect()
-        };
-        let mut b = bad_in("xyz", &mut image.xyz.iter().copied());
-        b.extend(bad_in("rgb", &mut image.rgb.iter().copied()));
-        b.extend(bad_in("Y_var", &mut image.y_var.iter().copied()));
-        nonfinite("image", b);
-        image
-    });
-    let mut bad = Vec::new();
-    nulls(&serde_json::to_value(&info).unwrap(), "run", &mut bad);
-    nonfinite("run.json", bad);
-    let maps = photon::maps::estimates(scene, result);
-    for m in &maps {
-        let mut b = Vec::new();
-        for (what, xs) in [("irradiance_w_m2", m.irradiance_w_m2()), ("illuminance_lx", m.illuminance_lx())] {
-            if let Some((i, x)) = xs.iter().enumerate().find(|(_, x)| !(x.0.is_finite() && x.1.is_finite())) {
-                b.push(format!("map {} {what}[{i}] = {x:?}", m.surface));
-            }
-        }
-        nonfinite("map", b);
-    }
-    let ff = photon::farfield::estimates(scene, result);
-    for e in &ff {
-        let [ng, nc] = e.detector.resolution;
-        let mut b = Vec::new();
-        'bins: for j in 0..nc {
-            for i in 0..ng {
-                let ((w, ws), (cd, cds)) = e.intensity(i, j);
-                if ![w, ws, cd, cds, e.detector.solid_angle_sr(i)].iter().all(|x| x.is_finite()) {
-                    b.push(format!("farfield {} bin ({i}, {j}) = {w}, {ws}, {cd}, {cds}", e.detector.name));
-                    break 'bins;
-                }
-            }
-        }
-        nonfinite("farfield", b);
-    }
-    // Write everything, as `photon run` does: a failure here comes after the whole simulation.
-    let mut late_findings = Vec::new();
-    let mut late = |what: &str, r: Result<(), Error>| {
-        if let Err(e) = r {
-            late_findings.push(Finding {
-                class: Class::LateFailure,
-                signature: format!("writing {what} fails"),
-                detail: format!("writing {what}: {e}"),
-            });
-        }
+    let late = |what: &str, e: &Error| Finding {
+        class: Class::LateFailure,
+        signature: format!("{what} fails"),
+        detail: format!("{what}: {e}"),
     };
-    let _ = std::fs::create_dir_all(out_dir);
-    late("flux.json", photon::output::write_json(out_dir, "flux.json", &flux).map(drop));
-    late("flux.csv", photon::output::write_atomic(out_dir, "flux.csv", photon::output::flux_csv(&flux).as_bytes()).map(drop));
-    if let Some(image) = &image {
-        late("image.exr", photon::output::write_exr(out_dir, image).map(drop));
-        late("image.png", photon::output::write_png(out_dir, image).map(drop));
+    let names = photon::output::run_file_names(scene, result.film.is_some());
+    let staged = match photon::output::OutputDir::prepare(out_dir, &names) {
+        Ok(s) => s,
+        Err(e) => return findings.push(late("preparing the output folder", &e)),
+    };
+    match photon::output::write_run(staged.path(), scene, result) {
+        Ok(_) => {}
+        Err(Error::Usage(_) | Error::Input(_)) => return,
+        Err(e) => return findings.push(late("writing the outputs", &e)),
     }
-    if !maps.is_empty() {
-        let dir = out_dir.join("maps");
-        let _ = std::fs::create_dir_all(&dir);
-        for m in &maps {
-            late("maps/*.exr", photon::maps::write_exr(&dir, m).map(drop));
-            late("maps/*.png", photon::maps::write_png(&dir, m, &scene.stem()).map(drop));
+    if let Err(e) = staged.commit(photon::output::is_run_output) {
+        return findings.push(late("committing the outputs", &e));
+    }
+    // What was written, read back.
+    let mut written = Vec::new();
+    collect_files(out_dir, &mut written);
+    for p in written {
+        let name = p.strip_prefix(out_dir).unwrap_or(&p).to_string_lossy().into_owned();
+        if name.ends_with(".json") {
+            let mut bad = Vec::new();
+            match serde_json::from_slice::<serde_json::Value>(&std::fs::read(&p).unwrap_or_default()) {
+                Ok(v) => nulls(&v, &name, &mut bad),
+                Err(e) => bad.push(format!("unreadable: {e}")),
+            }
+            push_nonfinite(findings, &name, bad);
+        } else if name.ends_with(".csv") {
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            push_nonfinite(findings, &name, csv_nonfinite(&text));
         }
     }
-    for e in &ff {
-        late("farfield_*.csv", photon::farfield::write_csv(out_dir, e).map(drop));
-        late("farfield_*.png", photon::farfield::write_png(out_dir, e, &scene.stem()).map(drop));
+    // The f32 images as they were encoded (write_run checked them; check it did).
+    if let Some(film) = &result.film {
+        let image = film.image(result.emitted_w);
+        let all = image.xyz.iter().chain(image.rgb.iter()).chain(image.y_var.iter());
+        let n = all.filter(|x| !x.is_finite()).count();
+        push_nonfinite(findings, "image.exr", if n > 0 { vec![format!("{n} non-finite values")] } else { vec![] });
     }
-    late("spectrum_*.csv", photon::output::write_spectra(out_dir, scene, result).map(drop));
-    late("run.json", photon::output::write_json(out_dir, "run.json", &info).map(drop));
-    findings.extend(late_findings);
-    // The CSVs as written.
-    for entry in std::fs::read_dir(out_dir).into_iter().flatten().flatten() {
-        let p = entry.path();
-        let name = p.file_name().unwrap().to_string_lossy().into_owned();
-        if name.ends_with(".csv") && name != "flux.csv" {
-            let text = std::fs::read_to_string(&p).unwrap_or_default();
-            let what = if name.starts_with("farfield_") { "farfield_*.csv" } else { "spectrum_*.csv" };
-            push_nonfinite(findings, what, csv_nonfinite(&text).into_iter().map(|s| format!("{name} {s}")).collect());
+    for m in photon::maps::estimates(scene, result) {
+        let fits = |xs: Vec<(f64, f64)>| xs.iter().all(|x| (x.0 as f32).is_finite() && (x.1 as f32).is_finite());
+        if !(fits(m.irradiance_w_m2()) && fits(m.illuminance_lx())) {
+            push_nonfinite(findings, "maps/*.exr", vec![format!("map {}", m.surface)]);
+        }
+    }
+}
+
+fn collect_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let p = e.path();
+        if p.is_dir() {
+            collect_files(&p, out);
+        } else {
+            out.push(p);
         }
     }
 }
@@ -1137,7 +1173,11 @@ fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path,
 fn check_error(e: &Error, case_dir: &Path, files: &BTreeMap<String, Vec<u8>>, scene_rel: &str) -> Option<Finding> {
     let text = e.to_string();
     let bad = |sig: &str, why: String| {
-        Some(Finding { class: Class::BadMessage, signature: sig.to_string(), detail: format!("{why}; message: {text}") })
+        Some(Finding {
+            class: Class::BadMessage,
+            signature: sig.to_string(),
+            detail: format!("{why}; message: {text}"),
+        })
     };
     let Error::Input(ie) = e else {
         return bad("not an input error", format!("load_str returned {:?}", std::mem::discriminant(e)));
@@ -1153,7 +1193,8 @@ fn check_error(e: &Error, case_dir: &Path, files: &BTreeMap<String, Vec<u8>>, sc
         }
         return bad("names no file of the case", format!("names {}", ie.file.display()));
     };
-    if !text.contains(&case_dir.join(scene_rel).display().to_string()) && !text.contains(&ie.file.display().to_string()) {
+    if !text.contains(&case_dir.join(scene_rel).display().to_string()) && !text.contains(&ie.file.display().to_string())
+    {
         return bad("file not in the text", "the text does not name the file".into());
     }
     let rel = rel.to_string_lossy().replace('\\', "/");
@@ -1165,7 +1206,10 @@ fn check_error(e: &Error, case_dir: &Path, files: &BTreeMap<String, Vec<u8>>, sc
     }
     // A missing top-level table (`lights`) has no line to name; anything deeper has one.
     if rel == scene_rel && ie.line.is_none() && ie.key.contains(['.', '[']) {
-        return bad(&format!("scene error without a line (key {})", ie.key), "an error in the scene file gives no line".into());
+        return bad(
+            &format!("scene error without a line (key {})", ie.key),
+            "an error in the scene file gives no line".into(),
+        );
     }
     None
 }
@@ -1174,7 +1218,8 @@ fn write_case(dir: &Path, input: &Input) {
     let _ = std::fs::remove_dir_all(dir);
     // Only the files the scene names (by file name), to keep the case cheap.
     let scene = String::from_utf8_lossy(&input.files[&input.scene]).into_owned();
-    let named = |rel: &str| *rel == input.scene || scene.contains(Path::new(rel).file_name().unwrap().to_str().unwrap());
+    let named =
+        |rel: &str| *rel == input.scene || scene.contains(Path::new(rel).file_name().unwrap().to_str().unwrap());
     for (rel, bytes) in input.files.iter().filter(|(rel, _)| named(rel)) {
         let p = dir.join(rel);
         std::fs::create_dir_all(p.parent().unwrap()).unwrap();
@@ -1195,7 +1240,11 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
     let mut scene = match loaded {
         Err(p) => {
             let where_ = take_panics().pop().unwrap_or_else(|| payload_text(&*p));
-            findings.push(Finding { class: Class::Panic, signature: format!("load_str panics: {where_}"), detail: where_ });
+            findings.push(Finding {
+                class: Class::Panic,
+                signature: format!("load_str panics: {where_}"),
+                detail: where_,
+            });
             return findings;
         }
         Ok(Err(e)) => {
@@ -1221,7 +1270,10 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
             return findings;
         }
     }
-    if scene.geometry.len() > MAX_RUN_TRIANGLES || scene.map_texels() > MAX_RUN_BINS || scene.farfield_bins() > MAX_RUN_BINS {
+    if scene.geometry.len() > MAX_RUN_TRIANGLES
+        || scene.map_texels() > MAX_RUN_BINS
+        || scene.farfield_bins() > MAX_RUN_BINS
+    {
         stats.skipped_large += 1;
         return findings;
     }
@@ -1232,7 +1284,11 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
         threads: Some(1),
         max_bounces: Some(*f.pick(&[&0u32, &1, &64, &64])),
         no_image: f.chance(0.1),
-        integrator: if f.chance(0.2) { Some(*f.pick(&[&Integrator::Light, &Integrator::Path, &Integrator::Bdpt])) } else { None },
+        integrator: if f.chance(0.2) {
+            Some(*f.pick(&[&Integrator::Light, &Integrator::Path, &Integrator::Bdpt]))
+        } else {
+            None
+        },
         transport: TransportOptions { estimator, stratified: f.chance(0.2), hero: f.chance(0.7) },
         ..Default::default()
     };
@@ -1250,7 +1306,11 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
     let result = match ran {
         Err(p) => {
             let where_ = take_panics().pop().unwrap_or_else(|| payload_text(&*p));
-            findings.push(Finding { class: Class::Panic, signature: format!("simulate panics: {where_}"), detail: format!("{where_} ({describe_opts})") });
+            findings.push(Finding {
+                class: Class::Panic,
+                signature: format!("simulate panics: {where_}"),
+                detail: format!("{where_} ({describe_opts})"),
+            });
             return findings;
         }
         Ok(Err(e)) => {
@@ -1264,7 +1324,11 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
                     detail: format!("simulate: {msg}; panic: {where_} ({describe_opts})"),
                 });
             } else {
-                findings.push(Finding { class: Class::LateFailure, signature: format!("simulate fails: {msg}"), detail: format!("{msg} ({describe_opts})") });
+                findings.push(Finding {
+                    class: Class::LateFailure,
+                    signature: format!("simulate fails: {msg}"),
+                    detail: format!("{msg} ({describe_opts})"),
+                });
             }
             return findings;
         }
@@ -1285,7 +1349,11 @@ fn run_case(index: usize, input: &Input, dir: &Path, f: &mut Fuzz, stats: &mut S
         })),
         Err(p) => {
             let where_ = take_panics().pop().unwrap_or_else(|| payload_text(&*p));
-            findings.push(Finding { class: Class::Panic, signature: format!("output panics: {where_}"), detail: format!("{where_} ({describe_opts})") });
+            findings.push(Finding {
+                class: Class::Panic,
+                signature: format!("output panics: {where_}"),
+                detail: format!("{where_} ({describe_opts})"),
+            });
         }
     }
     let _ = index;
@@ -1331,7 +1399,8 @@ fn fuzz_scene_loader_and_run() {
             continue;
         }
         // Each case has its own stream, from (seed, index) alone.
-        let mut f = Fuzz { rng: Xoshiro256PlusPlus::seed_from_u64(seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) };
+        let mut f =
+            Fuzz { rng: Xoshiro256PlusPlus::seed_from_u64(seed ^ (index as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)) };
         let k = f.below(seeds.len());
         let mut input = seeds[k].clone();
         // A tenth of the cases run a seed unchanged.
@@ -1359,7 +1428,10 @@ fn fuzz_scene_loader_and_run() {
             let entry = groups.entry((fi.class, fi.signature.clone())).or_insert((0, String::new()));
             entry.0 += 1;
             if entry.1.is_empty() {
-                let mut r = format!("    case {index} (PHOTON_FUZZ_SEED={seed} PHOTON_FUZZ_ONLY={index}), from {}\n", seeds[k].label);
+                let mut r = format!(
+                    "    case {index} (PHOTON_FUZZ_SEED={seed} PHOTON_FUZZ_ONLY={index}), from {}\n",
+                    seeds[k].label
+                );
                 let _ = writeln!(r, "    what: {}", fi.detail);
                 for m in &log {
                     let _ = writeln!(r, "    mutation: {m}");
@@ -1401,11 +1473,7 @@ fn fuzz_scene_loader_and_run() {
     for ((class, sig), (count, first)) in &groups {
         let _ = writeln!(report, "[{}] {sig} — {count} finding(s); first:\n{first}", class.name());
     }
-    panic!(
-        "fuzz: {failing_cases} of {} cases failed, {} distinct failures:\n\n{report}",
-        stats.cases,
-        groups.len()
-    );
+    panic!("fuzz: {failing_cases} of {} cases failed, {} distinct failures:\n\n{report}", stats.cases, groups.len());
 }
 
 // ------------------------------------------------------------------------------ command line
@@ -1419,23 +1487,72 @@ fn fuzz_command_line() {
     let base = dir.join("base.toml");
     std::fs::write(&base, HAND_SCENES[0].1).unwrap();
     let overflow = dir.join("overflow.toml");
-    std::fs::write(&overflow, format!("{}\n{}", HAND_SCENES[0].1, TOML_TABLES[0].replace("RES", "4294967296, 4294967296")))
-        .unwrap();
+    std::fs::write(
+        &overflow,
+        format!("{}\n{}", HAND_SCENES[0].1, TOML_TABLES[0].replace("RES", "4294967296, 4294967296")),
+    )
+    .unwrap();
     let scene = |s: &str| r.join("scenes").join(s).display().to_string();
     let base = base.display().to_string();
     let overflow = overflow.display().to_string();
     let cases: Vec<Vec<String>> = vec![
         vec!["converge".into(), scene("luminaire.toml"), "--budget".into(), "1".into()],
-        vec!["converge".into(), scene("parallel_plates.toml"), "--budget".into(), "0.3".into(), "--reference".into(), "nan".into()],
-        vec!["converge".into(), scene("parallel_plates.toml"), "--budget".into(), "0.3".into(), "--reference".into(), "0".into()],
+        vec![
+            "converge".into(),
+            scene("parallel_plates.toml"),
+            "--budget".into(),
+            "0.3".into(),
+            "--reference".into(),
+            "nan".into(),
+        ],
+        vec![
+            "converge".into(),
+            scene("parallel_plates.toml"),
+            "--budget".into(),
+            "0.3".into(),
+            "--reference".into(),
+            "0".into(),
+        ],
         vec!["converge".into(), base.clone(), "--budget".into(), "1e-9".into()],
         vec!["run".into(), base.clone(), "--photons".into(), "1".into(), "--quiet".into()],
-        vec!["run".into(), base.clone(), "--photons".into(), "2000".into(), "--time".into(), "1e-300".into(), "--quiet".into()],
-        vec!["run".into(), base.clone(), "--photons".into(), "2000".into(), "--rel-error".into(), "1e308".into(), "--quiet".into()],
+        vec![
+            "run".into(),
+            base.clone(),
+            "--photons".into(),
+            "2000".into(),
+            "--time".into(),
+            "1e-300".into(),
+            "--quiet".into(),
+        ],
+        vec![
+            "run".into(),
+            base.clone(),
+            "--photons".into(),
+            "2000".into(),
+            "--rel-error".into(),
+            "1e308".into(),
+            "--quiet".into(),
+        ],
         vec!["run".into(), base.clone(), "--photons".into(), "18446744073709551616".into()],
         vec!["run".into(), base.clone(), "--threads".into(), "18446744073709551615".into()],
-        vec!["run".into(), base.clone(), "--seed".into(), "18446744073709551615".into(), "--photons".into(), "100".into(), "--quiet".into()],
-        vec!["run".into(), base.clone(), "--max-bounces".into(), "4294967295".into(), "--photons".into(), "100".into(), "--quiet".into()],
+        vec![
+            "run".into(),
+            base.clone(),
+            "--seed".into(),
+            "18446744073709551615".into(),
+            "--photons".into(),
+            "100".into(),
+            "--quiet".into(),
+        ],
+        vec![
+            "run".into(),
+            base.clone(),
+            "--max-bounces".into(),
+            "4294967295".into(),
+            "--photons".into(),
+            "100".into(),
+            "--quiet".into(),
+        ],
         vec!["info".into(), overflow.clone()],
         vec!["run".into(), overflow, "--photons".into(), "100".into(), "--quiet".into()],
     ];

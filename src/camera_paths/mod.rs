@@ -489,7 +489,8 @@ impl<'a> ImageKernel<'a> {
         let material = self.materials[surface as usize];
         let n = geo.normal(prim);
         let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
-        if let Some(t) = medium.filter(|_| DIELECTRIC).and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl)) {
+        if let Some(t) = medium.filter(|_| DIELECTRIC).and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl))
+        {
             *beta *= t;
         }
         Arrival { surface, material, n, is_dielectric }

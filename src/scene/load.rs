@@ -28,11 +28,18 @@ const MAX_MAP_SIDE: u64 = 1024;
 /// Most wavelength bins of a surface's spectrum.
 const MAX_SPECTRUM_BINS: u64 = 10_000;
 const MAX_PIXELS: u64 = 4096 * 4096;
+/// Largest power of a light, and of all lights together, in W: 2.6 million Suns. Beyond it the
+/// sums of squares behind the standard errors, and the f32 images and maps, could overflow.
+pub const MAX_POWER_W: f64 = 1e33;
+/// Longest name of a surface, light or detector, in bytes: names become file names, and file
+/// systems allow 255 bytes for `farfield_<name>.png`.
+const MAX_NAME_BYTES: usize = 200;
+/// Hottest blackbody, in K: far past any thermal source, and Planck's law stays finite.
+pub const MAX_BLACKBODY_K: f64 = 1e9;
 
 /// Loads and checks a scene file.
 pub fn load(path: &Path) -> Result<Scene, Error> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::new(path, "", None, format!("cannot read the scene file: {e}")))?;
+    let text = crate::error::read_utf8(path, "the scene file")?;
     load_str(path, &text)
 }
 
@@ -101,6 +108,13 @@ impl<'s> Loader<'s> {
         let mut entries: Vec<Entry> = Vec::new();
         let mut check_name = |name: &str, key: &str, node_line: usize| -> R<()> {
             let error = |m: String| InputError::new(self.src.file, key, Some(node_line), m);
+            if crate::maps::file_stem(name).len() > MAX_NAME_BYTES {
+                return Err(error(format!(
+                    "a name of {} bytes is too long: names become output file names (maps/<name>.exr, \
+                     spectrum_<name>.csv), so they are at most {MAX_NAME_BYTES}",
+                    name.len()
+                )));
+            }
             if let Some(prev) = names.insert(name.to_string(), key.to_string()) {
                 return Err(error(format!(
                     "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
@@ -191,6 +205,8 @@ impl<'s> Loader<'s> {
             path: String,
             line: usize,
             shape_line: usize,
+            /// The key that set the power (the IES file's lumens: `distribution`) and its line.
+            power_key: (&'static str, usize),
         }
         enum PowerSpec {
             Watts(f64),
@@ -324,7 +340,12 @@ impl<'s> Loader<'s> {
                         return Err(t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w` or `power_lm`"));
                     }
                 }
+                let power_key = ["power_w", "power_lm", "radiance"]
+                    .into_iter()
+                    .find(|k| t.has(k))
+                    .unwrap_or("distribution");
                 Ok(LightSpec {
+                    power_key: (power_key, t.line_of_key(power_key)),
                     name,
                     material,
                     shape,
@@ -347,11 +368,7 @@ impl<'s> Loader<'s> {
             return Err(self.src.error("lights", None, "the scene has no light: add a [[lights]] entry"));
         }
 
-        let camera = root.with("camera", |n| self.camera(n.table()?))?.map(|c| Camera {
-            position: c.position * unit_m,
-            look_at: c.look_at * unit_m,
-            ..c
-        });
+        let camera = root.with("camera", |n| self.camera(n.table()?, unit_m))?;
 
         // Triangulate in metres (f64): surfaces first, then area lights.
         let mut warnings = Vec::new();
@@ -424,6 +441,14 @@ impl<'s> Loader<'s> {
             match &spec.shape {
                 ShapeSpec::Point { position, transform } => {
                     let p = transform.apply_point(DVec3::from(*position)) * unit_m;
+                    if !(p.abs().max_element() <= MAX_COORD_M) {
+                        return Err(InputError::new(
+                            self.src.file,
+                            &key,
+                            Some(spec.shape_line),
+                            format!("the point light lies at {p:?} m; every point must lie within {MAX_COORD_M:e} m of the origin"),
+                        ));
+                    }
                     let axis = spec.axis.map(|a| transform.apply_dir(a).normalize()).unwrap_or(DVec3::Z);
                     point_positions.push(Some((p, axis)));
                 }
@@ -463,9 +488,13 @@ impl<'s> Loader<'s> {
         let mut surfaces: Vec<Surface> = Vec::new();
         let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_specs.len()];
         let (mut texels, mut spectrum_bins) = (0, 0);
+        // Each surface's key and line, for the checks on the finished geometry.
+        let mut surface_keys: Vec<(String, usize)> = Vec::new();
         for sh in shaped {
+            surface_keys.push((sh.key.clone(), sh.line));
             let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
-            let (kept, kept_index) = self.single_precision(local, &sh.key, sh.line, &mut warnings)?;
+            let (kept, kept_index) =
+                self.single_precision(local, &sh.key, sh.line, (hi - lo).max_element(), &mut warnings)?;
             let id = surfaces.len();
             let area: f64 = kept.iter().map(|m| 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length()).sum();
             for m in &kept {
@@ -504,6 +533,7 @@ impl<'s> Loader<'s> {
         }
 
         let mut lights = Vec::with_capacity(light_specs.len());
+        let mut total_power_w = 0.0;
         let mut light_lines = Vec::with_capacity(light_specs.len());
         for (i, spec) in light_specs.into_iter().enumerate() {
             let (shape, area_m2) = match (point_positions[i], light_surface[i]) {
@@ -527,6 +557,31 @@ impl<'s> Loader<'s> {
                 }
             };
             light_lines.push(spec.shape_line);
+            if !(power_w <= MAX_POWER_W) {
+                let (key, line) = spec.power_key;
+                return Err(InputError::new(
+                    self.src.file,
+                    &child_path(&spec.path, key),
+                    Some(line),
+                    format!(
+                        "light \"{}\" would emit {power_w:e} W; photon accepts up to {MAX_POWER_W:e} W per light \
+                         (the Sun emits 3.8e26 W), beyond which its tallies and images cannot stay finite",
+                        spec.name
+                    ),
+                ));
+            }
+            total_power_w += power_w;
+            if !(total_power_w <= MAX_POWER_W) {
+                let (key, line) = spec.power_key;
+                return Err(InputError::new(
+                    self.src.file,
+                    &child_path(&spec.path, key),
+                    Some(line),
+                    format!(
+                        "the lights together would emit {total_power_w:e} W; photon accepts up to {MAX_POWER_W:e} W"
+                    ),
+                ));
+            }
             let lm_per_w = photometry::efficacy_of(&spectrum, range);
             lights.push(Light {
                 name: spec.name,
@@ -621,10 +676,15 @@ impl<'s> Loader<'s> {
                 .position(|s| s.name == name)
                 .ok_or_else(|| t.err_at("surface", format!("no surface named \"{name}\"")))?;
             let incident_w = t.req_f64("incident_w")?;
+            if !(incident_w > 0.0) {
+                return Err(t.err_at("incident_w", format!("a reference power must be positive, found {incident_w}")));
+            }
             let note = t.str("note")?.unwrap_or_default();
             Ok(Reference { surface, incident_w, note })
         })?;
-        let geometry = Geometry::build(tris, tri_surface);
+        let geometry = Geometry::build(tris, tri_surface).map_err(|m| InputError::new(self.src.file, "", None, m))?;
+        let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
+        self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
         Ok(Scene {
             path: path.to_path_buf(),
             simulation,
@@ -637,7 +697,121 @@ impl<'s> Loader<'s> {
             detectors,
             warnings,
             reference,
+            origin_m,
+            unit_m,
         })
+    }
+
+    /// A dielectric has an inside (the side its normals point away from), so it must be a closed,
+    /// consistently oriented surface with outward normals, inside no other dielectric, and the
+    /// camera must be outside them all (camera paths start in air): each is checked here, where
+    /// the README's promise can be kept, rather than misjudged photons later.
+    fn check_dielectrics(
+        &self,
+        geo: &Geometry,
+        surfaces: &[Surface],
+        materials: &[NamedMaterial],
+        keys: &[(String, usize)],
+        camera: Option<&Camera>,
+        camera_line: usize,
+    ) -> R<()> {
+        let is_dielectric = |s: usize| matches!(materials[surfaces[s].material].material, Material::Dielectric { .. });
+        let dielectrics: Vec<usize> = (0..surfaces.len()).filter(|&s| is_dielectric(s)).collect();
+        if dielectrics.is_empty() {
+            return Ok(());
+        }
+        let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
+        // Edges by their end points' exact f32 bits: each must be used twice, once each way.
+        let mut first_prim = vec![u32::MAX; surfaces.len()];
+        let mut edges: HashMap<(usize, [[u32; 3]; 2]), (u32, i32)> = HashMap::new();
+        let mut volume = vec![0.0f64; surfaces.len()];
+        for prim in 0..geo.len() {
+            let s = geo.surface_of(prim) as usize;
+            if !is_dielectric(s) {
+                continue;
+            }
+            if first_prim[s] == u32::MAX {
+                first_prim[s] = prim as u32;
+            }
+            let v = geo.verts(prim);
+            let d = v.map(|p| p.as_dvec3());
+            volume[s] += d[0].dot(d[1].cross(d[2])) / 6.0;
+            for k in 0..3 {
+                let (a, b) = (v[k].to_array().map(f32::to_bits), v[(k + 1) % 3].to_array().map(f32::to_bits));
+                let (key, way) = if a < b { ([a, b], 1) } else { ([b, a], -1) };
+                let e = edges.entry((s, key)).or_insert((0, 0));
+                e.0 += 1;
+                e.1 += way;
+            }
+        }
+        let mut bad: Vec<(usize, &'static str)> = edges
+            .iter()
+            .filter_map(|(&(s, _), &(count, way))| match (count, way) {
+                (2, 0) => None,
+                (1, _) => Some((s, "is not closed: some edges belong to one triangle only")),
+                (2, _) => Some((
+                    s,
+                    "has faces of opposite orientation: neighbouring triangles list a shared edge the same way",
+                )),
+                _ => Some((s, "is not a manifold: some edges are shared by more than two triangles")),
+            })
+            .collect();
+        bad.sort();
+        if let Some(&(s, what)) = bad.first() {
+            return Err(fail(
+                s,
+                format!(
+                    "dielectric surface \"{}\" {what}; a dielectric bounds a volume, so it must be a closed surface \
+                     (a box, a sphere, a closed mesh)",
+                    surfaces[s].name
+                ),
+            ));
+        }
+        for &s in &dielectrics {
+            if volume[s] < 0.0 {
+                return Err(fail(
+                    s,
+                    format!(
+                        "the normals of dielectric surface \"{}\" point inward (a negative scale, or a mesh wound \
+                         the other way), so its inside would be the world outside it: flip it",
+                        surfaces[s].name
+                    ),
+                ));
+            }
+        }
+        let inside = |point: Vec3A, skip: u32, not: usize| -> Option<usize> {
+            let crossings = geo.crossings(point, skip, surfaces.len());
+            dielectrics.iter().copied().find(|&d| d != not && crossings[d] % 2 == 1)
+        };
+        for &s in &dielectrics {
+            let prim = first_prim[s];
+            let (p, _) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b: [1.0 / 3.0; 3] });
+            if let Some(outer) = inside(p, prim, s) {
+                return Err(fail(
+                    s,
+                    format!(
+                        "dielectric surface \"{}\" lies inside (or crosses) dielectric \"{}\": nested dielectrics \
+                         are not supported",
+                        surfaces[s].name, surfaces[outer].name
+                    ),
+                ));
+            }
+        }
+        if let Some(c) = camera {
+            if let Some(d) = inside(c.position.as_vec3a(), crate::geometry::NO_PRIM, usize::MAX) {
+                return Err(InputError::new(
+                    self.src.file,
+                    "camera.position",
+                    Some(camera_line),
+                    format!(
+                        "the camera is inside dielectric surface \"{}\"; camera paths start in air, so the camera \
+                         must be outside every dielectric",
+                        surfaces[d].name
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Scales a shape's triangles to metres. Coordinates too far out for the BVH's f32 bounds
@@ -663,9 +837,15 @@ impl<'s> Loader<'s> {
         tris: Vec<[DVec3; 3]>,
         key: &str,
         line: usize,
+        scene_span_m: f64,
         warnings: &mut Vec<String>,
     ) -> R<(Vec<[DVec3; 3]>, Vec<usize>)> {
         let total = tris.len();
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for v in tris.iter().flatten() {
+            (lo, hi) = (lo.min(*v), hi.max(*v));
+        }
+        let (size_m, reach_m) = ((hi - lo).max_element(), lo.abs().max(hi.abs()).max_element());
         let (kept_index, kept): (Vec<usize>, Vec<[DVec3; 3]>) = tris
             .into_iter()
             .enumerate()
@@ -676,12 +856,18 @@ impl<'s> Loader<'s> {
             })
             .unzip();
         if kept.is_empty() {
-            return Err(InputError::new(
-                self.src.file,
-                key,
-                Some(line),
-                "the shape has no area at single precision: it is too thin for its size",
-            ));
+            // Far from the scene's centre, f32 cannot resolve a small shape: that is the scene's
+            // extent at fault (often one far-off light or object), not the shape.
+            let message = if size_m < 1e-5 * reach_m {
+                format!(
+                    "the shape is {size_m:.3e} m across but lies {reach_m:.3e} m from the centre of the scene, \
+                     which spans {scene_span_m:.3e} m: single precision cannot resolve it there; bring the \
+                     scene's surfaces and lights closer together"
+                )
+            } else {
+                "the shape has no area at single precision: it is too thin for its size".to_string()
+            };
+            return Err(InputError::new(self.src.file, key, Some(line), message));
         }
         if kept.len() < total {
             warnings.push(format!(
@@ -713,7 +899,6 @@ impl<'s> Loader<'s> {
             seed: 1,
             max_bounces: 100_000,
             wavelength_range_nm: (360.0, 830.0),
-            photons_given: false,
             integrator: crate::camera_paths::Integrator::Light,
         };
         root.with("simulation", |n| {
@@ -731,7 +916,6 @@ impl<'s> Loader<'s> {
                     return Err(t.err_at("photons", "photons must be at least 1"));
                 }
                 sim.photons = p;
-                sim.photons_given = true;
             }
             if let Some(s) = t.with("seed", |n| n.u64())? {
                 sim.seed = s;
@@ -915,6 +1099,15 @@ impl<'s> Loader<'s> {
                     return Err(t.err_at("name", format!("a detector named \"{name}\" already exists")));
                 }
                 let stem = crate::maps::file_stem(&name);
+                if stem.len() > MAX_NAME_BYTES {
+                    return Err(t.err_at(
+                        "name",
+                        format!(
+                            "a name of {} bytes is too long: it names farfield_<name>.csv; at most {MAX_NAME_BYTES}",
+                            name.len()
+                        ),
+                    ));
+                }
                 if let Some(d) = out.iter().find(|d| crate::maps::file_stem(&d.name) == stem) {
                     return Err(t.err_at(
                         "name",
@@ -960,10 +1153,16 @@ impl<'s> Loader<'s> {
         Ok(out)
     }
 
-    fn camera(&self, t: Table<'s, '_>) -> R<Camera> {
+    fn camera(&self, t: Table<'s, '_>, unit_m: f64) -> R<Camera> {
         t.allow(&["position", "look_at", "up", "fov_deg", "resolution"])?;
-        let position = DVec3::from(t.req_vec3("position")?);
-        let look_at = DVec3::from(t.req_vec3("look_at")?);
+        let point = |key: &str| -> R<DVec3> {
+            let p = DVec3::from(t.req_vec3(key)?) * unit_m;
+            if !(p.abs().max_element() <= MAX_COORD_M) {
+                return Err(t.err_at(key, format!("every point must lie within {MAX_COORD_M:e} m of the origin")));
+            }
+            Ok(p)
+        };
+        let (position, look_at) = (point("position")?, point("look_at")?);
         let up = DVec3::from(t.vec3("up")?.unwrap_or([0.0, 1.0, 0.0]));
         let forward = look_at - position;
         if forward.length() == 0.0 {
@@ -984,7 +1183,7 @@ impl<'s> Loader<'s> {
         let resolution = t
             .with("resolution", |n| {
                 let r = n.each(|x| x.u64())?;
-                if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0] * r[1] > MAX_PIXELS {
+                if r.len() != 2 || r[0] == 0 || r[1] == 0 || r[0].checked_mul(r[1]).is_none_or(|n| n > MAX_PIXELS) {
                     return Err(n.err(format!(
                         "expected [width, height] of at least 1 pixel each and at most {MAX_PIXELS} pixels in all"
                     )));
@@ -1021,8 +1220,11 @@ impl<'s> Loader<'s> {
         match keys[0] {
             "blackbody_k" => {
                 let k = t.req_f64("blackbody_k")?;
-                if k <= 0.0 {
-                    return Err(t.err_at("blackbody_k", format!("temperature must be positive, found {k}")));
+                if !(k > 0.0 && k <= MAX_BLACKBODY_K) {
+                    return Err(t.err_at(
+                        "blackbody_k",
+                        format!("temperature must be positive and at most {MAX_BLACKBODY_K:e} K, found {k}"),
+                    ));
                 }
                 Ok(Spectrum::Blackbody { kelvin: k })
             }
@@ -1101,19 +1303,26 @@ fn check_table(points: &[(f64, f64)]) -> Result<(), (usize, String)> {
     Ok(())
 }
 
-/// Two columns `wavelength_nm,value` after one header line.
+/// Two columns `wavelength_nm,value`, after an optional header line (one whose first column is not a number).
 pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::new(path, "", None, format!("cannot read spectrum file: {e}")))?;
+    let text = crate::error::read_text_lossy(path, "spectrum file")?;
     let mut points = Vec::new();
     let mut lines_of_rows = Vec::new();
-    for (i, line) in text.lines().enumerate().skip(1) {
+    let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    let mut header_seen = false;
+    for (i, line) in text.lines().enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
         let cols: Vec<&str> = line.split(',').map(str::trim).collect();
-        let parse = |s: &str| s.parse::<f64>().ok().filter(|v| v.is_finite());
+        // The header line is optional: a first line of two numbers is the first row, not lost.
+        if !header_seen && points.is_empty() {
+            header_seen = true;
+            if cols.first().and_then(|s| parse(s)).is_none() {
+                continue;
+            }
+        }
         match (cols.len(), cols.first().and_then(|s| parse(s)), cols.get(1).and_then(|s| parse(s))) {
             (2, Some(w), Some(v)) => {
                 points.push((w, v));

@@ -22,8 +22,6 @@ pub struct Simulation {
     pub seed: u64,
     pub max_bounces: u32,
     pub wavelength_range_nm: (f64, f64),
-    /// Which of the above were written in the file (a flag may still override them).
-    pub photons_given: bool,
     /// Which estimator makes the camera image (`light`, `path` or `bdpt`).
     pub integrator: crate::camera_paths::Integrator,
 }
@@ -200,6 +198,10 @@ pub struct Scene {
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
     pub reference: Option<Reference>,
+    /// Where the scene's own origin lies in the recentred frame the tracer uses (m), and the
+    /// file's length unit (m): to show positions in the file's coordinates again.
+    pub origin_m: glam::DVec3,
+    pub unit_m: f64,
 }
 
 /// `[reference] surface = "…", incident_w = …, note = "…"`: a closed-form value to converge to.
@@ -211,6 +213,11 @@ pub struct Reference {
 }
 
 impl Scene {
+    /// A point of the tracer's frame (m) in the scene file's own coordinates and unit.
+    pub fn file_coordinates(&self, p: glam::DVec3) -> glam::DVec3 {
+        (p + self.origin_m) / self.unit_m
+    }
+
     /// Bins of all far-field detectors together.
     pub fn farfield_bins(&self) -> usize {
         self.detectors.iter().map(|d| d.bins()).sum()

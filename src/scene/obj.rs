@@ -12,13 +12,14 @@ use crate::error::InputError;
 /// never be hit: each is skipped with a warning naming the file, the line and the face.
 /// Each triangle comes with its corners' texture coordinates when the face gives them (`v/vt`).
 pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 3], Option<[DVec2; 3]>)>, InputError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::new(path, "", None, format!("cannot read mesh file: {e}")))?;
+    let text = crate::error::read_text_lossy(path, "mesh file")?;
     let err = |line: usize, m: String| InputError::new(path, "", Some(line), m);
     let mut verts: Vec<DVec3> = Vec::new();
     let mut texcoords: Vec<DVec2> = Vec::new();
     let mut tris: Vec<([DVec3; 3], Option<[DVec2; 3]>)> = Vec::new();
     let mut face = 0usize;
+    // (line, face) of each zero-area triangle, skipped.
+    let mut flat: Vec<(usize, usize)> = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let line_no = i + 1;
         let line = raw.split('#').next().unwrap_or("").trim();
@@ -92,10 +93,7 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
                         tris.push((t, uv));
                     } else {
-                        warnings.push(format!(
-                            "{}:{line_no}: face {face} has zero area (repeated or collinear vertices); skipped",
-                            path.display()
-                        ));
+                        flat.push((line_no, face));
                     }
                 }
             }
@@ -105,5 +103,26 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 
     if tris.is_empty() {
         return Err(InputError::new(path, "", None, "the mesh has no faces with non-zero area"));
     }
+    // One warning for all of them: a mesh may have thousands.
+    if let Some(&(line, face)) = flat.first() {
+        let more = match flat.len() {
+            1 => String::new(),
+            n => format!(", and {} more ({})", n - 1, summarise_faces(&flat[1..])),
+        };
+        warnings.push(format!(
+            "{}:{line}: face {face} has zero area (repeated or collinear vertices){more}; skipped",
+            path.display()
+        ));
+    }
     Ok(tris)
+}
+
+/// The first few (line, face) pairs of `items` as "face F at line L", then an ellipsis.
+fn summarise_faces(items: &[(usize, usize)]) -> String {
+    const SHOWN: usize = 5;
+    let mut s: Vec<String> = items.iter().take(SHOWN).map(|(l, f)| format!("face {f} at line {l}")).collect();
+    if items.len() > SHOWN {
+        s.push("...".into());
+    }
+    s.join(", ")
 }

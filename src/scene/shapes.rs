@@ -105,7 +105,7 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
                 Ok(v)
             })?;
             let radius = positive("radius")?;
-            let segments = count("segments", 256, 3, 1 << 20)? as u32;
+            let segments = count("segments", 256, 3, 1 << 16)? as u32;
             Ok(ShapeSpec::Disk { center, normal, radius, segments, transform })
         }
         "sphere" => {
