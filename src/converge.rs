@@ -77,6 +77,25 @@ fn snapshot(
     }
 }
 
+/// Checks that `scene` has a surface to follow, and `tally` (if given) names one: its index.
+pub fn check(scene: &Scene, tally: Option<&str>) -> Result<Option<usize>, Error> {
+    if scene.surfaces.is_empty() {
+        return Err(Error::Usage(format!(
+            "{}: the scene has no surface, and converge follows a surface's incident power",
+            scene.path.display()
+        )));
+    }
+    tally
+        .map(|name| {
+            scene
+                .surfaces
+                .iter()
+                .position(|s| s.name == name)
+                .ok_or_else(|| Error::Usage(format!("--tally {name}: no surface of that name")))
+        })
+        .transpose()
+}
+
 /// Runs `scene` within `budget_s` seconds in all and tabulates the convergence of surface
 /// `tally` (default: the scene's reference surface, else the surface receiving the most power).
 /// When an independent reference run is needed (no closed form, or an image to compare), the
@@ -90,20 +109,8 @@ pub fn converge(
     budget_s: f64,
     interrupt: &AtomicBool,
 ) -> Result<Convergence, Error> {
-    if scene.surfaces.is_empty() {
-        return Err(Error::Usage(format!(
-            "{}: the scene has no surface, and converge follows a surface's incident power",
-            scene.path.display()
-        )));
-    }
-    let chosen_surface = match tally {
-        Some(name) => Some(
-            scene
-                .surfaces
-                .iter()
-                .position(|s| s.name == name)
-                .ok_or_else(|| Error::Usage(format!("--tally {name}: no surface of that name")))?,
-        ),
+    let chosen_surface = match check(scene, tally)? {
+        Some(s) => Some(s),
         None => scene.reference.as_ref().map(|r| r.surface),
     };
     let scene_reference =

@@ -81,8 +81,17 @@ pub fn read_input(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
     use std::io::Read;
     let fail = |e: std::io::Error| InputError::new(path, "", None, format!("cannot read {what}: {e}"));
     let file = std::fs::File::open(path).map_err(fail)?;
-    if file.metadata().map_err(fail)?.is_dir() {
-        return Err(InputError::new(path, "", None, format!("cannot read {what}: it is a folder")));
+    let meta = file.metadata().map_err(fail)?;
+    if !meta.is_file() {
+        return Err(InputError::new(path, "", None, format!("cannot read {what}: it is not a regular file")));
+    }
+    if meta.len() > MAX_INPUT_BYTES {
+        return Err(InputError::new(
+            path,
+            "",
+            None,
+            format!("cannot read {what}: it is larger than {MAX_INPUT_BYTES} bytes"),
+        ));
     }
     let mut bytes = Vec::new();
     file.take(MAX_INPUT_BYTES + 1).read_to_end(&mut bytes).map_err(fail)?;

@@ -231,7 +231,7 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
     let staged = output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image))?;
     let result = simulate(&scene, opts, &chosen, &INTERRUPT)?;
     let report = output::write_run(staged.path(), &scene, &result)?;
-    staged.commit(output::is_run_output)?;
+    staged.commit(&output::previous_run_files(&out_dir))?;
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
@@ -258,12 +258,13 @@ fn validate(quick: bool, threads: Option<usize>) -> Result<Outcome, Error> {
         let _ = std::io::stdout().flush();
     })?;
     print!("{}", photon::validate::footer(&cases, start.elapsed().as_secs_f64(), complete));
-    if !complete {
-        Ok(Outcome::Interrupted)
-    } else if cases.iter().all(|c| c.passed()) {
-        Ok(Outcome::Complete)
-    } else {
+    // A failed case outweighs the interruption.
+    if !cases.iter().all(|c| c.passed()) {
         Err(Error::Other("some validation cases failed".into()))
+    } else if !complete {
+        Ok(Outcome::Interrupted)
+    } else {
+        Ok(Outcome::Complete)
     }
 }
 
@@ -284,11 +285,7 @@ fn converge(
         }
     }
     let mut scene = load_warn(scene_path)?;
-    if let Some(name) = tally {
-        if !scene.surfaces.iter().any(|s| s.name == name) {
-            return Err(Error::Usage(format!("--tally {name}: no surface of that name")));
-        }
-    }
+    photon::converge::check(&scene, tally)?;
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
     const FILES: [&str; 2] = ["convergence.csv", "convergence.png"];
     let staged = output::OutputDir::prepare(&out_dir, &FILES.map(String::from))?;
@@ -296,7 +293,7 @@ fn converge(
     print!("{}", c.table());
     output::write_atomic(staged.path(), FILES[0], c.csv().as_bytes())?;
     c.plot(&staged.path().join(FILES[1]), &format!("{}: error against time", scene.stem()))?;
-    staged.commit(|_| false)?;
+    staged.commit(&[])?;
     println!("wrote {}: {}", out_dir.display(), FILES.join(", "));
     Ok(if c.interrupted { Outcome::Interrupted } else { Outcome::Complete })
 }

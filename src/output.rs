@@ -110,6 +110,9 @@ pub struct RunInfo {
     /// Relative RMS pixel noise sqrt(mean(Y_var))/mean(Y): the image's typical relative error.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_pixel_rel_error: Option<f64>,
+    /// The files this run wrote, relative to the output folder (run.json last): a later run
+    /// into the same folder removes those it does not write again, and nothing else.
+    pub files: Vec<String>,
 }
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
@@ -190,6 +193,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         integrator: r.integrator,
         mean_scatterings: r.tallies.mean_scatterings().0,
         mean_scatterings_stderr: r.tallies.mean_scatterings().1,
+        files: Vec::new(),
     }
 }
 
@@ -415,18 +419,25 @@ pub fn run_file_names(scene: &Scene, image: bool) -> Vec<String> {
     names
 }
 
-/// Whether `relative` (a path inside an output folder, with '/') is a file that `photon run`
-/// writes for some scene: such a file left by an earlier run is stale once a new run lands.
-pub fn is_run_output(relative: &str) -> bool {
-    let file = relative.rsplit('/').next().unwrap_or(relative);
-    match relative.split_once('/') {
-        Some(("maps", f)) => !f.contains('/') && (f.ends_with(".exr") || f.ends_with(".png")),
+/// The files an earlier run listed in `dir/run.json` (its `files`): the only ones a new run
+/// may remove as stale. A folder without such a list loses nothing.
+pub fn previous_run_files(dir: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(dir.join("run.json")) else { return Vec::new() };
+    let Ok(json) = serde_json::from_str::<serde_json::Value>(&text) else { return Vec::new() };
+    json["files"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|v| v.as_str()).filter(|f| is_output_name(f)).map(String::from).collect())
+        .unwrap_or_default()
+}
+
+/// A relative path photon could have written: a plain name, or one inside `maps/` (so a
+/// tampered list cannot point outside the folder).
+fn is_output_name(f: &str) -> bool {
+    let plain = |n: &str| !n.is_empty() && n != "." && n != ".." && !n.contains(['/', '\\']);
+    match f.split_once('/') {
+        Some(("maps", n)) => plain(n),
         Some(_) => false,
-        None => {
-            matches!(file, "flux.json" | "flux.csv" | "run.json" | "image.exr" | "image.png")
-                || (file.starts_with("farfield_") && (file.ends_with(".csv") || file.ends_with(".png")))
-                || (file.starts_with("spectrum_") && file.ends_with(".csv"))
-        }
+        None => plain(f),
     }
 }
 
@@ -437,13 +448,15 @@ pub fn spectrum_file_name(surface: &str) -> String {
 /// An output folder being written. Files go into a hidden staging folder first (inside the
 /// target when it exists, else beside it, so the final renames stay on one file system), and
 /// `commit` moves them into place: a new folder appears whole by one rename; into an existing
-/// one each file is renamed into place and the stale outputs of an earlier run that this one did
-/// not write (`stale` decides which files count) are removed. Dropped uncommitted, nothing is
-/// left behind.
+/// one each file is renamed into place (file by file, not at once), and then the files an
+/// earlier run listed that this one did not write are removed. Dropped uncommitted, nothing is
+/// left behind, not even the parent folders it had to create.
 pub struct OutputDir {
     target: PathBuf,
     staging: PathBuf,
     target_existed: bool,
+    /// Folders `prepare` created above the target, deepest first.
+    created: Vec<PathBuf>,
     committed: bool,
 }
 
@@ -453,6 +466,9 @@ impl OutputDir {
     /// permission, a name too long), so it is a usage error, reported before any work.
     pub fn prepare(target: &Path, names: &[String]) -> Result<Self, Error> {
         let usage = |what: String| Error::Usage(format!("--out {}: {what}", target.display()));
+        if target.file_name().is_none() && !target.is_dir() {
+            return Err(usage("names no folder".into()));
+        }
         let target_existed = match std::fs::metadata(target) {
             Ok(m) if m.is_dir() => true,
             Ok(_) => return Err(usage("is a file, not a folder".into())),
@@ -460,6 +476,7 @@ impl OutputDir {
             Err(e) => return Err(usage(format!("cannot be read: {e}"))),
         };
         let tag = format!(".photon-staging-{}", std::process::id());
+        let mut created = Vec::new();
         let staging = if target_existed {
             target.join(tag)
         } else {
@@ -467,14 +484,24 @@ impl OutputDir {
                 Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
                 _ => PathBuf::from("."),
             };
+            let mut missing = parent.as_path();
+            while !missing.exists() {
+                created.push(missing.to_path_buf());
+                match missing.parent() {
+                    Some(p) if !p.as_os_str().is_empty() => missing = p,
+                    _ => break,
+                }
+            }
             std::fs::create_dir_all(&parent)
                 .map_err(|e| usage(format!("cannot create the folder {}: {e}", parent.display())))?;
-            let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-            parent.join(format!(".{name}{tag}"))
+            parent.join(tag)
         };
         let _ = std::fs::remove_dir_all(&staging);
-        std::fs::create_dir(&staging).map_err(|e| usage(format!("cannot write there: {e}")))?;
-        let dir = OutputDir { target: target.to_path_buf(), staging, target_existed, committed: false };
+        let mut dir = OutputDir { target: target.to_path_buf(), staging, target_existed, created, committed: false };
+        if let Err(e) = std::fs::create_dir(&dir.staging) {
+            dir.staging = PathBuf::new();
+            return Err(usage(format!("cannot write there: {e}")));
+        }
         for name in names {
             let probe = dir.staging.join(name);
             let tried = (|| {
@@ -485,6 +512,11 @@ impl OutputDir {
                 std::fs::remove_file(&probe)
             })();
             tried.map_err(|e| usage(format!("cannot write {name} there: {e}")))?;
+            // The same name must be free to take in the target: not a folder, its folder not a file.
+            let at = target.join(name);
+            if at.is_dir() || at.parent().is_some_and(|p| p.exists() && !p.is_dir()) {
+                return Err(usage(format!("{name} cannot be written there: a folder or file is in its way")));
+            }
         }
         Ok(dir)
     }
@@ -494,26 +526,25 @@ impl OutputDir {
         &self.staging
     }
 
-    pub fn target(&self) -> &Path {
-        &self.target
-    }
-
-    /// Moves the staged files into place (see the type's comment).
-    pub fn commit(mut self, stale: fn(&str) -> bool) -> Result<(), Error> {
+    /// Moves the staged files into place (see the type's comment); `previous` lists the files an
+    /// earlier run wrote there (`previous_run_files`), of which those not written now go.
+    pub fn commit(mut self, previous: &[String]) -> Result<(), Error> {
         let fail =
             |e: std::io::Error| Error::Other(format!("cannot move the outputs into {}: {e}", self.target.display()));
+        // Empty subfolders from the name probes go; a folder appears only with files in it.
+        remove_empty_dirs(&self.staging);
         if !self.target_existed {
-            // Empty subfolders from the name probes go; a folder appears only with files in it.
-            remove_empty_dirs(&self.staging);
-            std::fs::rename(&self.staging, &self.target).map_err(fail)?;
-            self.committed = true;
-            return Ok(());
+            match std::fs::rename(&self.staging, &self.target) {
+                Ok(()) => {
+                    self.committed = true;
+                    return Ok(());
+                }
+                // Another process made the folder meanwhile: move the files in one by one.
+                Err(_) if self.target.is_dir() => {}
+                Err(e) => return Err(fail(e)),
+            }
         }
         let new = output_files(&self.staging).map_err(fail)?;
-        let old = output_files(&self.target).map_err(fail)?;
-        for f in old.iter().filter(|f| stale(f) && !new.contains(f)) {
-            std::fs::remove_file(self.target.join(f)).map_err(fail)?;
-        }
         for f in &new {
             let to = self.target.join(f);
             if let Some(p) = to.parent() {
@@ -521,13 +552,16 @@ impl OutputDir {
             }
             std::fs::rename(self.staging.join(f), to).map_err(fail)?;
         }
+        self.committed = true;
         let _ = std::fs::remove_dir_all(&self.staging);
+        for f in previous.iter().filter(|f| !new.contains(f)) {
+            let _ = std::fs::remove_file(self.target.join(f));
+        }
         if let Ok(maps) = std::fs::read_dir(self.target.join("maps")) {
             if maps.count() == 0 {
                 let _ = std::fs::remove_dir(self.target.join("maps"));
             }
         }
-        self.committed = true;
         Ok(())
     }
 }
@@ -535,7 +569,12 @@ impl OutputDir {
 impl Drop for OutputDir {
     fn drop(&mut self) {
         if !self.committed {
-            let _ = std::fs::remove_dir_all(&self.staging);
+            if !self.staging.as_os_str().is_empty() {
+                let _ = std::fs::remove_dir_all(&self.staging);
+            }
+            for d in &self.created {
+                let _ = std::fs::remove_dir(d);
+            }
         }
     }
 }
@@ -651,7 +690,9 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
     for p in write_spectra(dir, scene, r)? {
         wrote(p);
     }
-    wrote(write_json(dir, "run.json", &info)?);
+    info.files = files.iter().cloned().chain(["run.json".to_string()]).collect();
+    write_json(dir, "run.json", &info)?;
+    let files = info.files.clone();
     Ok(RunReport { flux, info, files, warnings })
 }
 

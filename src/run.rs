@@ -337,8 +337,9 @@ pub fn simulate_observed(
                     emitted_w: emitter.total_power_w,
                     threads,
                 });
-                let worst =
-                    opts.rel_error.and(tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model()));
+                let worst = opts
+                    .rel_error
+                    .and_then(|_| tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model()));
                 if let Some(p) = &progress {
                     p.update(&tallies, worst);
                 }

@@ -1123,7 +1123,7 @@ fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path,
         Err(Error::Usage(_) | Error::Input(_)) => return,
         Err(e) => return findings.push(late("writing the outputs", &e)),
     }
-    if let Err(e) = staged.commit(photon::output::is_run_output) {
+    if let Err(e) = staged.commit(&photon::output::previous_run_files(out_dir)) {
         return findings.push(late("committing the outputs", &e));
     }
     // What was written, read back.

@@ -28,8 +28,9 @@ const MAX_MAP_SIDE: u64 = 1024;
 /// Most wavelength bins of a surface's spectrum.
 const MAX_SPECTRUM_BINS: u64 = 10_000;
 const MAX_PIXELS: u64 = 4096 * 4096;
-/// Largest power of a light, and of all lights together, in W: 2.6 million Suns. Beyond it the
-/// sums of squares behind the standard errors, and the f32 images and maps, could overflow.
+/// Largest power of a light, and of all lights together, in W: 2.6 million Suns. Below it the
+/// f64 tallies and their standard errors stay finite; the f32 images and maps are checked when
+/// written (a small scene can overflow them at far lower powers).
 pub const MAX_POWER_W: f64 = 1e33;
 /// Longest name of a surface, light or detector, in bytes: names become file names, and file
 /// systems allow 255 bytes for `farfield_<name>.png`.
@@ -744,7 +745,7 @@ impl<'s> Loader<'s> {
                 e.1 += way;
             }
         }
-        let mut bad: Vec<(usize, &'static str)> = edges
+        let bad: Vec<(usize, &'static str)> = edges
             .iter()
             .filter_map(|(&(s, _), &(count, way))| match (count, way) {
                 (2, 0) => None,
@@ -756,8 +757,7 @@ impl<'s> Loader<'s> {
                 _ => Some((s, "is not a manifold: some edges are shared by more than two triangles")),
             })
             .collect();
-        bad.sort();
-        if let Some(&(s, what)) = bad.first() {
+        if let Some(&(s, what)) = bad.iter().min() {
             return Err(fail(
                 s,
                 format!(
