@@ -558,28 +558,24 @@ impl<'s> Loader<'s> {
                 }
             };
             light_lines.push(spec.shape_line);
-            if !(power_w <= MAX_POWER_W) {
-                let (key, line) = spec.power_key;
-                return Err(InputError::new(
-                    self.src.file,
-                    &child_path(&spec.path, key),
-                    Some(line),
-                    format!(
-                        "light \"{}\" would emit {power_w:e} W; photon accepts up to {MAX_POWER_W:e} W per light \
-                         (the Sun emits 3.8e26 W), beyond which its tallies and images cannot stay finite",
-                        spec.name
-                    ),
-                ));
-            }
+            // Each light, and all of them together, must keep the tallies finite.
             total_power_w += power_w;
-            if !(total_power_w <= MAX_POWER_W) {
+            let too_much = if !(power_w <= MAX_POWER_W) {
+                Some(format!("light \"{}\" would emit {power_w:e} W", spec.name))
+            } else if !(total_power_w <= MAX_POWER_W) {
+                Some(format!("the lights together would emit {total_power_w:e} W"))
+            } else {
+                None
+            };
+            if let Some(what) = too_much {
                 let (key, line) = spec.power_key;
                 return Err(InputError::new(
                     self.src.file,
                     &child_path(&spec.path, key),
                     Some(line),
                     format!(
-                        "the lights together would emit {total_power_w:e} W; photon accepts up to {MAX_POWER_W:e} W"
+                        "{what}; photon accepts up to {MAX_POWER_W:e} W in all (the Sun emits 3.8e26 W), \
+                         beyond which its tallies cannot stay finite"
                     ),
                 ));
             }
