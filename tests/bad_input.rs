@@ -9,21 +9,8 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// A minimal valid scene: one Lambertian quad and one quad light.
-const BASE: &str = r#"[materials.white]
-type = "lambertian"
-reflectance = 0.5
-
-[[surfaces]]
-name = "floor"
-material = "white"
-shape = { type = "quad", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }
-
-[[lights]]
-name = "lamp"
-shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
-power_w = 10
-"#;
+mod common;
+use common::BASE;
 
 /// A second surface, appended to `BASE` where a case needs one.
 const SECOND_SURFACE: &str = r#"

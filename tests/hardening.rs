@@ -10,31 +10,15 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::BASE;
+
 const BIN: &str = env!("CARGO_BIN_EXE_photon");
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
-/// One quad floor under a quad lamp.
-const BASE: &str = r#"[materials.white]
-type = "lambertian"
-reflectance = 0.5
-
-[[surfaces]]
-name = "floor"
-material = "white"
-shape = { type = "quad", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }
-
-[[lights]]
-name = "lamp"
-shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
-power_w = 10
-"#;
-
 /// A fresh folder for one test.
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("photon-hardening-{name}-{}", std::process::id()));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
+    common::temp_dir(&format!("hardening-{name}"))
 }
 
 /// Writes `toml` as `scene.toml` in a fresh folder; returns the folder and the scene path.

@@ -64,3 +64,19 @@ pub fn cornell_toml() -> String {
         .replace("../spectra/", &format!("{root}/spectra/"))
         .replace("meshes/", &format!("{root}/scenes/meshes/"))
 }
+
+/// A minimal valid scene: one Lambertian quad floor under one quad light.
+pub const BASE: &str = r#"[materials.white]
+type = "lambertian"
+reflectance = 0.5
+
+[[surfaces]]
+name = "floor"
+material = "white"
+shape = { type = "quad", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }
+
+[[lights]]
+name = "lamp"
+shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
+power_w = 10
+"#;
