@@ -139,7 +139,7 @@ mod tests {
     #[test]
     fn d65_white_maps_to_equal_rgb() {
         // D65's chromaticity is sRGB's white point, so its linear RGB components are equal.
-        let d65 = crate::scene::read_spectrum_csv(std::path::Path::new(concat!(
+        let d65 = crate::spectrum::read_csv(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/spectra/cie_d65.csv"
         )))

@@ -222,6 +222,16 @@ pub struct Image {
     pub y_var: Vec<f32>,
 }
 
+impl Image {
+    /// sqrt(mean(Y_var))/mean(Y): the image's typical relative pixel error.
+    pub fn pixel_rel_error(&self) -> f64 {
+        let n = self.y_var.len() as f64;
+        let mean_y = self.xyz.column(1).iter().map(|&y| y as f64).sum::<f64>() / n;
+        let mean_var = self.y_var.iter().map(|&v| v as f64).sum::<f64>() / n;
+        mean_var.sqrt() / mean_y
+    }
+}
+
 impl Film {
     pub fn new(width: usize, height: usize) -> Self {
         let pixels = width * height;

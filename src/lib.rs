@@ -3,18 +3,18 @@
 //!
 //! Data path: `scene` (TOML → SI triangles) → `emitter` (photon births) → `transport` (the photon
 //! loop over the `geometry` BVH, `material` decisions) → `tally` (per-history moments, ledger) →
-//! `run` (batches, ordered reduction, stopping) → `output` (atomic files).
+//! `run` (batches, ordered reduction, stopping) → `output` (staged files). Modules are layered
+//! one way down (see `tests/layers.rs` for the order): none names a module above it.
 
+pub mod batch;
 pub mod camera_paths;
 pub mod color;
 pub mod converge;
 pub mod emitter;
 pub mod error;
-pub mod farfield;
 pub mod film;
 pub mod geometry;
 pub mod ies;
-pub mod maps;
 pub mod material;
 pub mod output;
 pub mod photometry;

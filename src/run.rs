@@ -12,8 +12,7 @@ use crate::scene::Scene;
 use crate::tally::Tallies;
 use crate::transport::{Estimator, Kernel, TransportOptions};
 
-/// Photons per batch. Fixed, so a batch's photons and its random stream never depend on threads.
-pub const BATCH_PHOTONS: u64 = 16_384;
+pub use crate::batch::BATCH_PHOTONS;
 
 /// Longest the merge waits for a batch before it looks at the clock and for Ctrl-C again.
 const POLL: std::time::Duration = std::time::Duration::from_millis(10);
@@ -467,7 +466,7 @@ pub fn choose_estimator(
             round += 1;
         }
         // The light-traced image's relative variance per photon: N × (pixel noise)².
-        let image = film.map(|f| crate::output::pixel_rel_error(&f.image(1.0)).powi(2) * total.photons as f64);
+        let image = film.map(|f| f.image(1.0).pixel_rel_error().powi(2) * total.photons as f64);
         (total, image.filter(|v| v.is_finite()))
     };
     let (analog, expected) = rayon::join(|| pilot(Estimator::Analog), || pilot(Estimator::Expected));

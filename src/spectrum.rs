@@ -1,6 +1,10 @@
 //! Spectra: constant, tabulated (piecewise linear, zero outside the table), blackbody and
 //! Cauchy dispersion; and the tabulated CDF used to sample a wavelength by inverse transform.
 
+use std::path::Path;
+
+use crate::error::InputError;
+
 /// Planck's constant (J s), speed of light (m/s), Boltzmann's constant (J/K); CODATA 2018 exact values.
 const PLANCK_H: f64 = 6.626_070_15e-34;
 const LIGHT_C: f64 = 299_792_458.0;
@@ -234,6 +238,75 @@ impl SpectralSampler {
         let x = if denom > 0.0 { 2.0 * r / denom } else { 0.0 };
         (x0 + x.clamp(0.0, w)).min(x1)
     }
+}
+
+/// Wavelengths strictly increasing and positive; values non-negative. Err((row, message)).
+pub fn check_table(points: &[(f64, f64)]) -> Result<(), (usize, String)> {
+    if points.is_empty() {
+        return Err((0, "a spectrum table needs at least one [wavelength_nm, value] row".into()));
+    }
+    for (i, p) in points.iter().enumerate() {
+        if p.0 <= 0.0 {
+            return Err((i, format!("wavelength must be positive, found {}", p.0)));
+        }
+        if p.1 < 0.0 {
+            return Err((i, format!("spectrum values must not be negative, found {} at {} nm", p.1, p.0)));
+        }
+        if i > 0 && p.0 <= points[i - 1].0 {
+            return Err((
+                i,
+                format!(
+                    "wavelengths must be sorted and strictly increasing: {} nm follows {} nm",
+                    p.0,
+                    points[i - 1].0
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Two columns `wavelength_nm,value`, after an optional header line (one whose first column is not a number).
+pub fn read_csv(path: &Path) -> Result<Spectrum, InputError> {
+    let text = crate::error::read_text_lossy(path, "spectrum file")?;
+    let mut points = Vec::new();
+    let mut lines_of_rows = Vec::new();
+    let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
+    let mut header_seen = false;
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+        // The header line is optional: a first line of two numbers is the first row, not lost.
+        if !header_seen && points.is_empty() {
+            header_seen = true;
+            if cols.first().and_then(|s| parse(s)).is_none() {
+                continue;
+            }
+        }
+        match (cols.len(), cols.first().and_then(|s| parse(s)), cols.get(1).and_then(|s| parse(s))) {
+            (2, Some(w), Some(v)) => {
+                points.push((w, v));
+                lines_of_rows.push(i + 1);
+            }
+            _ => {
+                return Err(InputError::new(
+                    path,
+                    "",
+                    Some(i + 1),
+                    format!("expected `wavelength_nm,value` (two finite numbers), found \"{line}\""),
+                ))
+            }
+        }
+    }
+    if text.lines().next().is_none() {
+        return Err(InputError::new(path, "", None, "the spectrum file is empty"));
+    }
+    check_table(&points)
+        .map_err(|(row, m)| InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m))?;
+    Ok(Spectrum::Table(Table::new(points)))
 }
 
 #[cfg(test)]

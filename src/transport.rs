@@ -3,17 +3,17 @@
 //! estimator a run calls for, so a grey scene never draws a wavelength, a run without a film
 //! never splats, and neither pays a branch per photon for the other's work.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use glam::Vec3A;
 
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{Geometry, RayEnd};
-use crate::maps::SurfaceMap;
 use crate::material::{albedo, lobe_factor, sample_scatter, Lobe};
 use crate::photometry;
 use crate::sampling::Sampler;
+use crate::scene::map::SurfaceMap;
 use crate::scene::{Material, Scene};
 use crate::tally::{HistoryScores, Tallies};
 
@@ -79,15 +79,6 @@ pub struct Kernel<'a> {
 /// Under this seed, test builds panic in batch 3 (to test that a failed batch fails the run).
 #[cfg(test)]
 pub const PANIC_TEST_SEED: u64 = 0xDEAD_BEEF;
-
-/// Photons between two looks at `Kernel::cancel`.
-pub const CANCEL_CHECK_PHOTONS: u64 = 256;
-
-/// Whether `cancel` is set; checked every `CANCEL_CHECK_PHOTONS` photons of a batch.
-#[inline]
-pub fn cancelled(cancel: Option<&AtomicBool>, photon: u64) -> bool {
-    photon % CANCEL_CHECK_PHOTONS == 0 && cancel.is_some_and(|c| c.load(Ordering::Relaxed))
-}
 
 impl Kernel<'_> {
     /// Whether hero wavelengths are used: spectral transport with a film and no dispersion.
@@ -246,7 +237,7 @@ impl Kernel<'_> {
         let (range_lo, range_width) = (range.0, range.1 - range.0);
 
         for photon in 0..count as u32 {
-            if cancelled(self.cancel, photon as u64) {
+            if crate::batch::cancelled(self.cancel, photon as u64) {
                 out.photons = photon as u64;
                 return out;
             }

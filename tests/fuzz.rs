@@ -1150,7 +1150,7 @@ fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path,
         let n = all.filter(|x| !x.is_finite()).count();
         push_nonfinite(findings, "image.exr", if n > 0 { vec![format!("{n} non-finite values")] } else { vec![] });
     }
-    for m in photon::maps::estimates(scene, result) {
+    for m in photon::output::maps::estimates(scene, result) {
         let fits = |xs: Vec<(f64, f64)>| xs.iter().all(|x| (x.0 as f32).is_finite() && (x.1 as f32).is_finite());
         if !(fits(m.irradiance_w_m2()) && fits(m.illuminance_lx())) {
             push_nonfinite(findings, "maps/*.exr", vec![format!("map {}", m.surface)]);

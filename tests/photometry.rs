@@ -7,7 +7,7 @@ use common::{assert_z, cornell_toml, run, scene, surface};
 
 use std::sync::atomic::AtomicBool;
 
-use photon::maps::{self, MapEstimate};
+use photon::output::maps::{self, MapEstimate};
 use photon::output::{self, Flux};
 use photon::run::{apply_options, simulate, RunOptions};
 
@@ -186,17 +186,20 @@ fn ies_alone(file: &str, frame: &str, resolution: [usize; 2]) -> String {
     )
 }
 
-fn run_farfield(toml: &str, photons: u64, seed: u64) -> (Flux, photon::farfield::FarFieldEstimate) {
+fn run_farfield(toml: &str, photons: u64, seed: u64) -> (Flux, photon::output::farfield::FarFieldEstimate) {
     let mut s = scene(toml);
     let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
     let chosen = apply_options(&mut s, &opts).unwrap();
     let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
-    (output::flux(&s, &r), photon::farfield::estimates(&s, &r).remove(0))
+    (output::flux(&s, &r), photon::output::farfield::estimates(&s, &r).remove(0))
 }
 
 /// Σ z² over the bins with a non-zero standard error, their count, and the largest |z|, of the
 /// far-field intensity (cd) against `expected(γ₀, γ₁, C)` in degrees.
-fn farfield_z(e: &photon::farfield::FarFieldEstimate, expected: impl Fn(f64, f64, f64) -> f64) -> (f64, usize, f64) {
+fn farfield_z(
+    e: &photon::output::farfield::FarFieldEstimate,
+    expected: impl Fn(f64, f64, f64) -> f64,
+) -> (f64, usize, f64) {
     let [ng, nc] = e.detector.resolution;
     let (mut chi2, mut k, mut worst) = (0.0, 0, 0.0f64);
     for j in 0..nc {

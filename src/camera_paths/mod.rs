@@ -32,32 +32,7 @@ use crate::scene::{Material, Scene};
 use crate::spectrum::Spectrum;
 use crate::tally::Counters;
 
-/// Which estimator makes the image.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
-#[serde(rename_all = "snake_case")]
-pub enum Integrator {
-    /// Light tracing: every photon vertex splatted to the camera (the particle tracer's own film).
-    #[default]
-    Light,
-    /// Path tracing from the camera with next-event estimation and MIS.
-    Path,
-    /// Bidirectional path tracing: all connection strategies, MIS-weighted.
-    Bdpt,
-}
-
-impl Integrator {
-    pub fn name(&self) -> &'static str {
-        match self {
-            Integrator::Light => "light",
-            Integrator::Path => "path",
-            Integrator::Bdpt => "bdpt",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<Integrator> {
-        <Integrator as clap::ValueEnum>::from_str(s, false).ok()
-    }
-}
+pub use crate::scene::Integrator;
 
 pub const LANES: usize = 4;
 
@@ -450,13 +425,13 @@ impl<'a> ImageKernel<'a> {
         cancel: Option<&std::sync::atomic::AtomicBool>,
     ) -> FilmBatch {
         let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
-        let first = batch * crate::run::BATCH_PHOTONS;
+        let first = batch * crate::batch::BATCH_PHOTONS;
         let pixels = self.camera.pixels() as u64;
         let mut film = FilmBatch { first_sample: first, ..FilmBatch::default() };
         film.samples.reserve(count as usize);
         let mut bdpt = bdpt::Scratch::default();
         for i in 0..count {
-            if crate::transport::cancelled(cancel, i) {
+            if crate::batch::cancelled(cancel, i) {
                 break;
             }
             let pixel = ((first + i) % pixels) as usize;

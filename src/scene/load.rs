@@ -109,7 +109,7 @@ impl<'s> Loader<'s> {
         let mut entries: Vec<Entry> = Vec::new();
         let mut check_name = |name: &str, key: &str, node_line: usize| -> R<()> {
             let error = |m: String| InputError::new(self.src.file, key, Some(node_line), m);
-            if crate::maps::file_stem(name).len() > MAX_NAME_BYTES {
+            if crate::scene::map::file_stem(name).len() > MAX_NAME_BYTES {
                 return Err(error(format!(
                     "a name of {} bytes is too long: names become output file names (maps/<name>.exr, \
                      spectrum_<name>.csv), so they are at most {MAX_NAME_BYTES}",
@@ -121,11 +121,11 @@ impl<'s> Loader<'s> {
                     "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
                 )));
             }
-            if let Some(prev) = stems.insert(crate::maps::file_stem(name), name.to_string()) {
+            if let Some(prev) = stems.insert(crate::scene::map::file_stem(name), name.to_string()) {
                 return Err(error(format!(
                     "names \"{prev}\" and \"{name}\" give the same output file name \"{}\" (characters other \
                      than letters, digits, '-' and '_' become '_'): rename one",
-                    crate::maps::file_stem(name)
+                    crate::scene::map::file_stem(name)
                 )));
             }
             Ok(())
@@ -157,7 +157,7 @@ impl<'s> Loader<'s> {
                         }
                         Ok([r[0] as usize, r[1] as usize])
                     })?;
-                    let frame = crate::maps::frame(&shape);
+                    let frame = crate::scene::map::frame(&shape);
                     if frame.is_none() && !matches!(shape, ShapeSpec::Mesh { .. }) {
                         return Err(n.err(
                             "an irradiance map needs a surface of type \"quad\" or \"disk\", or a mesh with \
@@ -404,7 +404,7 @@ impl<'s> Loader<'s> {
                 let flat = tris.iter().zip(uvs).position(|(t, q)| {
                     let area = (t[1] - t[0]).cross(t[2] - t[0]).length();
                     let edge = (q[1] - q[0]).length().max((q[2] - q[1]).length()).max((q[0] - q[2]).length());
-                    area > 0.0 && !(crate::maps::polygon_area(q) > 1e-9 * edge * edge)
+                    area > 0.0 && !(crate::scene::map::polygon_area(q) > 1e-9 * edge * edge)
                 });
                 if let Some(k) = flat {
                     return Err(InputError::new(
@@ -505,11 +505,11 @@ impl<'s> Loader<'s> {
             let map = sh.map.map(|(resolution, frame)| {
                 let map = match (frame, &sh.uvs) {
                     (Some([o, u, v]), _) => {
-                        crate::maps::SurfaceMap::planar(resolution, o - origin_m, u, v, &kept, texels)
+                        crate::scene::map::SurfaceMap::planar(resolution, o - origin_m, u, v, &kept, texels)
                     }
                     (None, Some(uvs)) => {
                         let uvs: Vec<_> = kept_index.iter().map(|&k| uvs[k]).collect();
-                        crate::maps::SurfaceMap::textured(resolution, &kept, &uvs, texels)
+                        crate::scene::map::SurfaceMap::textured(resolution, &kept, &uvs, texels)
                     }
                     (None, None) => unreachable!("checked when triangulated"),
                 };
@@ -895,14 +895,14 @@ impl<'s> Loader<'s> {
             seed: 1,
             max_bounces: 100_000,
             wavelength_range_nm: (360.0, 830.0),
-            integrator: crate::camera_paths::Integrator::Light,
+            integrator: Integrator::Light,
         };
         root.with("simulation", |n| {
             let t = n.table()?;
             t.allow(&["photons", "seed", "max_bounces", "wavelength_range_nm", "integrator"])?;
             if let Some(i) = t.with("integrator", |n| {
                 let name = n.str()?;
-                crate::camera_paths::Integrator::parse(name)
+                Integrator::parse(name)
                     .ok_or_else(|| n.err(format!("unknown integrator \"{name}\"; use \"light\", \"path\" or \"bdpt\"")))
             })? {
                 sim.integrator = i;
@@ -1080,8 +1080,8 @@ impl<'s> Loader<'s> {
 
     /// `[[detectors]]`: far-field detectors, `type = "farfield"`, `resolution = [n_gamma, n_c]`,
     /// optional `name`, `nadir` (default [0, 0, -1]) and `c0` (see `ies::Frame`).
-    fn detectors(&self, root: Table<'s, '_>, _origin_m: DVec3) -> R<Vec<crate::farfield::FarField>> {
-        let mut out: Vec<crate::farfield::FarField> = Vec::new();
+    fn detectors(&self, root: Table<'s, '_>, _origin_m: DVec3) -> R<Vec<crate::scene::farfield::FarField>> {
+        let mut out: Vec<crate::scene::farfield::FarField> = Vec::new();
         root.with("detectors", |n| {
             n.each(|item| {
                 let t = item.table()?;
@@ -1094,7 +1094,7 @@ impl<'s> Loader<'s> {
                 if out.iter().any(|d| d.name == name) {
                     return Err(t.err_at("name", format!("a detector named \"{name}\" already exists")));
                 }
-                let stem = crate::maps::file_stem(&name);
+                let stem = crate::scene::map::file_stem(&name);
                 if stem.len() > MAX_NAME_BYTES {
                     return Err(t.err_at(
                         "name",
@@ -1104,7 +1104,7 @@ impl<'s> Loader<'s> {
                         ),
                     ));
                 }
-                if let Some(d) = out.iter().find(|d| crate::maps::file_stem(&d.name) == stem) {
+                if let Some(d) = out.iter().find(|d| crate::scene::map::file_stem(&d.name) == stem) {
                     return Err(t.err_at(
                         "name",
                         format!(
@@ -1137,7 +1137,7 @@ impl<'s> Loader<'s> {
                     }
                 }
                 let offset = out.iter().map(|d| d.bins()).sum();
-                out.push(crate::farfield::FarField {
+                out.push(crate::scene::farfield::FarField {
                     name,
                     resolution,
                     frame: crate::ies::Frame::new(nadir, c0),
@@ -1240,7 +1240,7 @@ impl<'s> Loader<'s> {
                     Ok((v[0], v[1]))
                 })?;
                 // An empty table has no row to point at: the table itself is at fault.
-                check_table(&points).map_err(|(i, m)| match n.array().unwrap().get(i) {
+                crate::spectrum::check_table(&points).map_err(|(i, m)| match n.array().unwrap().get(i) {
                     Some(item) => Node { src: n.src, path: &index_path(n.path, i), value: item }.err(m),
                     None => n.err(m),
                 })?;
@@ -1249,7 +1249,7 @@ impl<'s> Loader<'s> {
             "file" => t.require("file", |n| {
                 let rel = n.str()?;
                 let path = self.base_dir.join(rel);
-                read_spectrum_csv(&path).map_err(|mut e| {
+                crate::spectrum::read_csv(&path).map_err(|mut e| {
                     e.message = format!(
                         "{} (spectrum file named by `{}` at {}:{})",
                         e.message,
@@ -1271,75 +1271,6 @@ enum SpectrumUse {
     Fraction,
     Ior,
     NonNegative,
-}
-
-/// Wavelengths strictly increasing and positive; values non-negative. Err((row, message)).
-fn check_table(points: &[(f64, f64)]) -> Result<(), (usize, String)> {
-    if points.is_empty() {
-        return Err((0, "a spectrum table needs at least one [wavelength_nm, value] row".into()));
-    }
-    for (i, p) in points.iter().enumerate() {
-        if p.0 <= 0.0 {
-            return Err((i, format!("wavelength must be positive, found {}", p.0)));
-        }
-        if p.1 < 0.0 {
-            return Err((i, format!("spectrum values must not be negative, found {} at {} nm", p.1, p.0)));
-        }
-        if i > 0 && p.0 <= points[i - 1].0 {
-            return Err((
-                i,
-                format!(
-                    "wavelengths must be sorted and strictly increasing: {} nm follows {} nm",
-                    p.0,
-                    points[i - 1].0
-                ),
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Two columns `wavelength_nm,value`, after an optional header line (one whose first column is not a number).
-pub fn read_spectrum_csv(path: &Path) -> Result<Spectrum, InputError> {
-    let text = crate::error::read_text_lossy(path, "spectrum file")?;
-    let mut points = Vec::new();
-    let mut lines_of_rows = Vec::new();
-    let parse = |s: &str| s.trim().parse::<f64>().ok().filter(|v| v.is_finite());
-    let mut header_seen = false;
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let cols: Vec<&str> = line.split(',').map(str::trim).collect();
-        // The header line is optional: a first line of two numbers is the first row, not lost.
-        if !header_seen && points.is_empty() {
-            header_seen = true;
-            if cols.first().and_then(|s| parse(s)).is_none() {
-                continue;
-            }
-        }
-        match (cols.len(), cols.first().and_then(|s| parse(s)), cols.get(1).and_then(|s| parse(s))) {
-            (2, Some(w), Some(v)) => {
-                points.push((w, v));
-                lines_of_rows.push(i + 1);
-            }
-            _ => {
-                return Err(InputError::new(
-                    path,
-                    "",
-                    Some(i + 1),
-                    format!("expected `wavelength_nm,value` (two finite numbers), found \"{line}\""),
-                ))
-            }
-        }
-    }
-    if text.lines().next().is_none() {
-        return Err(InputError::new(path, "", None, "the spectrum file is empty"));
-    }
-    check_table(&points)
-        .map_err(|(row, m)| InputError::new(path, "", lines_of_rows.get(row).copied().or(Some(1)), m))?;
-    Ok(Spectrum::Table(crate::spectrum::Table::new(points)))
 }
 
 fn simplify(s: &mut Spectrum, range: (f64, f64)) {

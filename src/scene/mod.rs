@@ -2,7 +2,9 @@
 //! Nothing here knows about sampling or the BVH's internals; `load` turns TOML into a `Scene`.
 
 mod doc;
+pub mod farfield;
 mod load;
+pub mod map;
 mod obj;
 pub(crate) mod shapes;
 
@@ -13,7 +15,7 @@ use glam::DVec3;
 use crate::geometry::Geometry;
 use crate::spectrum::Spectrum;
 
-pub use load::{load, load_str, read_spectrum_csv};
+pub use load::{load, load_str};
 pub use shapes::icosphere;
 
 #[derive(Clone, Debug)]
@@ -23,7 +25,7 @@ pub struct Simulation {
     pub max_bounces: u32,
     pub wavelength_range_nm: (f64, f64),
     /// Which estimator makes the camera image (`light`, `path` or `bdpt`).
-    pub integrator: crate::camera_paths::Integrator,
+    pub integrator: Integrator,
 }
 
 #[derive(Clone, Debug)]
@@ -72,7 +74,7 @@ pub struct Surface {
     /// Index into `Scene::lights` when this surface is an area light's.
     pub light: Option<usize>,
     /// Its irradiance map, when the scene asks for one (`map = { resolution = [nu, nv] }`).
-    pub map: Option<crate::maps::SurfaceMap>,
+    pub map: Option<map::SurfaceMap>,
     /// `spectrum_bins = N`: N equal wavelength bins of incident flux, starting at this index of
     /// the scene's spectral-bin array.
     pub spectrum_bins: Option<(usize, usize)>,
@@ -193,7 +195,7 @@ pub struct Scene {
     pub geometry: Geometry,
     pub effects: Effects,
     /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
-    pub detectors: Vec<crate::farfield::FarField>,
+    pub detectors: Vec<farfield::FarField>,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
@@ -202,6 +204,34 @@ pub struct Scene {
     /// file's length unit (m): to show positions in the file's coordinates again.
     pub origin_m: glam::DVec3,
     pub unit_m: f64,
+}
+
+/// Which integrator makes the camera image (`[simulation] integrator`, `--integrator`): the
+/// scene's plain description of the choice; the integrators live in `camera_paths`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// Light tracing: every photon vertex splatted to the camera (the particle tracer's own film).
+    #[default]
+    Light,
+    /// Path tracing from the camera with next-event estimation and MIS.
+    Path,
+    /// Bidirectional path tracing: all connection strategies, MIS-weighted.
+    Bdpt,
+}
+
+impl Integrator {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Integrator::Light => "light",
+            Integrator::Path => "path",
+            Integrator::Bdpt => "bdpt",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Integrator> {
+        <Integrator as clap::ValueEnum>::from_str(s, false).ok()
+    }
 }
 
 /// `[reference] surface = "…", incident_w = …, note = "…"`: a closed-form value to converge to.

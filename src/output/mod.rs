@@ -1,4 +1,8 @@
-//! Output files, each written to a temporary name and renamed, so no reader ever sees half a file.
+//! Output files: flux.json/csv, run.json, image.exr/png, maps and far-field files (`maps`,
+//! `farfield`), staged in a hidden folder and moved into place whole (`OutputDir`).
+
+pub mod farfield;
+pub mod maps;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -347,19 +351,11 @@ pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Erro
     write_atomic(dir, "image.png", &bytes)
 }
 
-/// sqrt(mean(Y_var))/mean(Y) of an image.
-pub fn pixel_rel_error(image: &crate::film::Image) -> f64 {
-    let n = image.y_var.len() as f64;
-    let mean_y = image.xyz.column(1).iter().map(|&y| y as f64).sum::<f64>() / n;
-    let mean_var = image.y_var.iter().map(|&v| v as f64).sum::<f64>() / n;
-    mean_var.sqrt() / mean_y
-}
-
 /// The plots' font, embedded (DejaVu Sans, see assets/fonts/) so no system font is needed.
 pub fn register_plot_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
-        let font: &'static [u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
+        let font: &'static [u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
         let _ = plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, font);
     });
 }
@@ -407,14 +403,14 @@ pub fn run_file_names(scene: &Scene, image: bool) -> Vec<String> {
     }
     for s in &scene.surfaces {
         if s.map.is_some() {
-            names.extend(["exr", "png"].map(|ext| format!("maps/{}", crate::maps::file_name(&s.name, ext))));
+            names.extend(["exr", "png"].map(|ext| format!("maps/{}", crate::scene::map::file_name(&s.name, ext))));
         }
         if s.spectrum_bins.is_some() {
             names.push(spectrum_file_name(&s.name));
         }
     }
     for d in &scene.detectors {
-        names.extend(["csv", "png"].map(|ext| crate::farfield::file_name(&d.name, ext)));
+        names.extend(["csv", "png"].map(|ext| crate::output::farfield::file_name(&d.name, ext)));
     }
     names
 }
@@ -442,7 +438,7 @@ fn is_output_name(f: &str) -> bool {
 }
 
 pub fn spectrum_file_name(surface: &str) -> String {
-    format!("spectrum_{}.csv", crate::maps::file_stem(surface))
+    format!("spectrum_{}.csv", crate::scene::map::file_stem(surface))
 }
 
 /// An output folder being written. Files go into a hidden staging folder first (inside the
@@ -639,7 +635,7 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
         return Err(too_large("the tallies", ""));
     }
     let image = r.film.as_ref().map(|f| f.image(r.emitted_w));
-    let maps = crate::maps::estimates(scene, r);
+    let maps = crate::output::maps::estimates(scene, r);
     let f32_limit = " in 32-bit floats (at most 3.4e38)";
     if let Some(image) = &image {
         let finite = |v: &f32| v.is_finite();
@@ -653,7 +649,7 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
             return Err(too_large(&format!("the irradiance map of \"{}\"", m.surface), f32_limit));
         }
     }
-    let farfields = crate::farfield::estimates(scene, r);
+    let farfields = crate::output::farfield::estimates(scene, r);
     let mut files = Vec::new();
     let mut wrote = |p: PathBuf| files.push(p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().replace('\\', "/"));
     wrote(write_json(dir, "flux.json", &flux)?);
@@ -662,7 +658,7 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
         wrote(write_exr(dir, image, r.integrator.name())?);
         wrote(write_png(dir, image)?);
         info.image_mean_y = Some(film.mean_y(r.emitted_w));
-        info.image_pixel_rel_error = Some(pixel_rel_error(image)).filter(|v| v.is_finite());
+        info.image_pixel_rel_error = Some(image.pixel_rel_error()).filter(|v| v.is_finite());
         if film.film_batches() < 2 {
             warnings.push(
                 "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
@@ -679,13 +675,13 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
         std::fs::create_dir_all(&maps_dir)
             .map_err(|e| Error::Other(format!("cannot create {}: {e}", maps_dir.display())))?;
         for m in &maps {
-            wrote(crate::maps::write_exr(&maps_dir, m)?);
-            wrote(crate::maps::write_png(&maps_dir, m, &scene.stem())?);
+            wrote(crate::output::maps::write_exr(&maps_dir, m)?);
+            wrote(crate::output::maps::write_png(&maps_dir, m, &scene.stem())?);
         }
     }
     for e in &farfields {
-        wrote(crate::farfield::write_csv(dir, e)?);
-        wrote(crate::farfield::write_png(dir, e, &scene.stem())?);
+        wrote(crate::output::farfield::write_csv(dir, e)?);
+        wrote(crate::output::farfield::write_png(dir, e, &scene.stem())?);
     }
     for p in write_spectra(dir, scene, r)? {
         wrote(p);
