@@ -1,0 +1,269 @@
+//! Every direction sampler against its pdf, by Pearson's χ² test as Mitsuba's `chi2` tests do:
+//! N directions are binned on the sphere in bins of equal solid angle (equal in cos θ and φ about
+//! +z); each bin's expected count is N ∫_bin pdf dΩ, integrated by a 32 × 32 midpoint rule inside
+//! the bin; bins expecting fewer than 5 are pooled; the statistic's upper-tail probability must
+//! exceed α = 10⁻³ (so a correct sampler fails one such test in a thousand; the seeds are fixed,
+//! so a pass is reproducible). The pdf must also integrate to 1 over the sphere (to 10⁻³), and the
+//! harness itself is shown to reject a sampler paired with the wrong pdf.
+
+use std::f64::consts::PI;
+use std::path::Path;
+
+use glam::Vec3A;
+use photon::emitter::Emitter;
+use photon::material::sample_scatter;
+use photon::sampling::{cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, Sampler};
+use photon::scene::{LightShape, Material};
+use photon::spectrum::Spectrum;
+
+const N_COS: usize = 12;
+const N_PHI: usize = 24;
+const SAMPLES: usize = 300_000;
+const ALPHA: f64 = 1e-3;
+
+/// Upper-tail probability of χ² with `k` degrees of freedom (Wilson–Hilferty: (χ²/k)^(1/3) is
+/// close to normal with mean 1 − 2/(9k) and variance 2/(9k); ample for k ≥ 10 and α = 10⁻³).
+fn chi2_tail(chi2: f64, k: f64) -> f64 {
+    let v = 2.0 / (9.0 * k);
+    let z = ((chi2 / k).cbrt() - (1.0 - v)) / v.sqrt();
+    0.5 * erfc(z / 2f64.sqrt())
+}
+
+/// Complementary error function (Numerical Recipes' erfcc, fractional error below 1.2e-7).
+fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.26551223
+            + t * (1.00002368
+                + t * (0.37409196
+                    + t * (0.09678418
+                        + t * (-0.18628806
+                            + t * (0.27886807
+                                + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+fn bin_of(w: Vec3A) -> usize {
+    let i = (((w.z as f64 + 1.0) / 2.0 * N_COS as f64) as usize).min(N_COS - 1);
+    let phi = (w.y as f64).atan2(w.x as f64).rem_euclid(2.0 * PI);
+    let j = ((phi / (2.0 * PI) * N_PHI as f64) as usize).min(N_PHI - 1);
+    i * N_PHI + j
+}
+
+fn direction(cos: f64, phi: f64) -> Vec3A {
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    Vec3A::new((sin * phi.cos()) as f32, (sin * phi.sin()) as f32, cos as f32)
+}
+
+/// (χ², degrees of freedom, upper-tail probability, ∫pdf dΩ) of `sample` against `pdf`.
+fn chi2(seed: u64, mut sample: impl FnMut(&mut Sampler) -> Vec3A, pdf: impl Fn(Vec3A) -> f64) -> (f64, f64, f64, f64) {
+    let mut s = Sampler::for_batch(seed, 0);
+    let mut observed = vec![0.0f64; N_COS * N_PHI];
+    for _ in 0..SAMPLES {
+        let w = sample(&mut s);
+        assert!((w.length() - 1.0).abs() < 1e-4, "a sampled direction is not a unit vector: {w:?}");
+        observed[bin_of(w)] += 1.0;
+    }
+    const SUB: usize = 32;
+    let (d_cos, d_phi) = (2.0 / N_COS as f64, 2.0 * PI / N_PHI as f64);
+    let mut expected = vec![0.0f64; N_COS * N_PHI];
+    for i in 0..N_COS {
+        for j in 0..N_PHI {
+            let mut integral = 0.0;
+            for a in 0..SUB {
+                for b in 0..SUB {
+                    let cos = -1.0 + (i as f64 + (a as f64 + 0.5) / SUB as f64) * d_cos;
+                    let phi = (j as f64 + (b as f64 + 0.5) / SUB as f64) * d_phi;
+                    integral += pdf(direction(cos, phi));
+                }
+            }
+            expected[i * N_PHI + j] = integral * d_cos * d_phi / (SUB * SUB) as f64;
+        }
+    }
+    let total: f64 = expected.iter().sum();
+    // Pool the bins expecting fewer than 5 into one.
+    let (mut stat, mut cells, mut pooled_o, mut pooled_e) = (0.0, 0usize, 0.0, 0.0);
+    for (o, e) in observed.iter().zip(&expected) {
+        let e = e * SAMPLES as f64;
+        if e < 5.0 {
+            pooled_o += o;
+            pooled_e += e;
+        } else {
+            stat += (o - e) * (o - e) / e;
+            cells += 1;
+        }
+    }
+    if pooled_e >= 5.0 {
+        stat += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
+        cells += 1;
+    } else {
+        assert!(pooled_o <= 5.0 + 5.0 * pooled_e, "{pooled_o} samples where the pdf expects {pooled_e}");
+    }
+    let dof = (cells - 1) as f64;
+    (stat, dof, chi2_tail(stat, dof), total)
+}
+
+fn assert_matches(what: &str, seed: u64, sample: impl FnMut(&mut Sampler) -> Vec3A, pdf: impl Fn(Vec3A) -> f64) {
+    let (stat, dof, p, total) = chi2(seed, sample, pdf);
+    println!("{what}: χ² = {stat:.1}, {dof} dof, p = {p:.3}, ∫pdf = {total:.6}");
+    assert!((total - 1.0).abs() < 1e-3, "{what}: the pdf integrates to {total}, not 1");
+    assert!(p > ALPHA, "{what}: χ² = {stat:.1} for {dof} degrees of freedom, p = {p:.2e} < {ALPHA}");
+}
+
+fn uv(s: &mut Sampler) -> (f32, f32) {
+    (s.uniform_f32(), s.uniform_f32())
+}
+
+#[test]
+fn the_harness_rejects_a_sampler_paired_with_the_wrong_pdf() {
+    // Cosine-weighted directions judged against the uniform hemisphere pdf, and cos^5 against cos^4.
+    let n = Vec3A::Z;
+    let (_, _, p, _) = chi2(
+        1,
+        |s| {
+            let (a, b) = uv(s);
+            cosine_hemisphere(n, a, b)
+        },
+        |w| if w.z > 0.0 { 1.0 / (2.0 * PI) } else { 0.0 },
+    );
+    assert!(p < 1e-12, "p = {p}");
+    let (_, _, p, _) = chi2(
+        2,
+        |s| {
+            let (a, b) = uv(s);
+            cosine_power_lobe(n, 5.0, a, b)
+        },
+        |w| if w.z > 0.0 { 5.0 / (2.0 * PI) * (w.z as f64).powi(4) } else { 0.0 },
+    );
+    assert!(p < 1e-12, "p = {p}");
+}
+
+#[test]
+fn uniform_and_cosine_warps_match_their_pdfs() {
+    let n = Vec3A::new(0.3, -0.5, 0.8).normalize();
+    let cos = |w: Vec3A| w.dot(n) as f64;
+    assert_matches(
+        "uniform sphere",
+        3,
+        |s| {
+            let (a, b) = uv(s);
+            uniform_sphere(a, b)
+        },
+        |_| 1.0 / (4.0 * PI),
+    );
+    assert_matches(
+        "uniform hemisphere",
+        4,
+        |s| {
+            let (a, b) = uv(s);
+            uniform_hemisphere(n, a, b)
+        },
+        |w| if cos(w) > 0.0 { 1.0 / (2.0 * PI) } else { 0.0 },
+    );
+    assert_matches(
+        "cosine hemisphere",
+        5,
+        |s| {
+            let (a, b) = uv(s);
+            cosine_hemisphere(n, a, b)
+        },
+        |w| cos(w).max(0.0) / PI,
+    );
+    for (k, e) in [1.0f64, 5.0, 50.0].into_iter().enumerate() {
+        assert_matches(
+            &format!("cos^{e} lobe"),
+            6 + k as u64,
+            |s| {
+                let (a, b) = uv(s);
+                cosine_power_lobe(n, e as f32, a, b)
+            },
+            |w| if cos(w) > 0.0 { (e + 1.0) / (2.0 * PI) * cos(w).powf(e) } else { 0.0 },
+        );
+    }
+}
+
+#[test]
+fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
+    // ρ = 0.3, τ = 0.5: given a scattering, the direction has density (ρ cos⁺ + τ cos⁻)/(π(ρ + τ))
+    // about the normal on the side the photon came from.
+    let m = Material::Lambertian { reflectance: Spectrum::Constant(0.3), transmittance: Spectrum::Constant(0.5) };
+    let n = Vec3A::Z;
+    let d = Vec3A::new(0.3, 0.2, -0.9).normalize();
+    assert_matches(
+        "lambertian reflect + transmit",
+        9,
+        |s| sample_scatter(&m, 550.0, d, n, s).0,
+        |w| {
+            let c = w.z as f64;
+            (0.3 * c.max(0.0) + 0.5 * (-c).max(0.0)) / (PI * 0.8)
+        },
+    );
+    // Arriving from below, the lobes swap sides.
+    let up = Vec3A::new(0.1, -0.2, 0.95).normalize();
+    assert_matches(
+        "lambertian from below",
+        10,
+        |s| sample_scatter(&m, 550.0, up, n, s).0,
+        |w| {
+            let c = w.z as f64;
+            (0.3 * (-c).max(0.0) + 0.5 * c.max(0.0)) / (PI * 0.8)
+        },
+    );
+}
+
+/// A point light with `distribution` aimed along `direction`, and its emitter.
+fn point_light(distribution: &str) -> (Emitter, Vec3A) {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let toml = format!(
+        "[[lights]]\nname = \"lamp\"\nshape = {{ type = \"point\", position = [0, 0, 0] }}\npower_w = 1\n\
+         direction = [0.2, 0.1, -1]\ndistribution = {distribution}\n"
+    );
+    let scene = photon::scene::load_str(Path::new(&format!("{root}/tests/data/ies/inline.toml")), &toml).unwrap();
+    let axis = match scene.lights[0].shape {
+        LightShape::Point { axis, .. } => axis.as_vec3a(),
+        _ => unreachable!(),
+    };
+    (Emitter::new(&scene), axis)
+}
+
+#[test]
+fn emission_directions_match_their_pdfs_for_every_distribution() {
+    // The emitter's own sampler and pdf, as every integrator uses them: cosine power and the IES
+    // tables (inverse CDF over sub-cells; the bilateral and the C90 lobe files are asymmetric).
+    let cases = [
+        "\"lambertian\"",
+        "{ cosine_power = 7 }",
+        "{ ies = \"cosine.ies\" }",
+        "{ ies = \"bilateral.ies\", c0 = [1, 0, 0] }",
+        "{ ies = \"c90_lobe.ies\", c0 = [0, 1, 0] }",
+    ];
+    for (k, distribution) in cases.into_iter().enumerate() {
+        let (emitter, axis) = point_light(distribution);
+        assert_matches(
+            distribution,
+            20 + k as u64,
+            |s| {
+                let (a, b) = uv(s);
+                emitter.sample_direction(0, axis, a, b).0
+            },
+            |w| emitter.direction_pdf(0, axis, w) as f64,
+        );
+    }
+    // An isotropic point light: the whole sphere.
+    let (emitter, axis) = point_light("\"isotropic\"");
+    assert_matches(
+        "isotropic",
+        30,
+        |s| {
+            let (a, b) = uv(s);
+            emitter.sample_direction(0, axis, a, b).0
+        },
+        |w| emitter.direction_pdf(0, axis, w) as f64,
+    );
+}
