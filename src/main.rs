@@ -163,6 +163,7 @@ fn main() -> ExitCode {
     let _ = ctrlc::set_handler(|| {
         if INTERRUPT.swap(true, Ordering::Relaxed) {
             eprintln!("\nstopped at once: nothing more is written");
+            output::remove_staging_folders();
             std::process::exit(130);
         }
     });

@@ -398,6 +398,34 @@ fn sigterm_and_sigint_stop_a_run_with_its_results_written_and_exit_3() {
 }
 
 #[test]
+fn a_second_signal_stops_at_once_and_leaves_no_staging_folder() {
+    // Two Ctrl-Cs back to back: the first asks the run to stop and write, the second (arriving
+    // while it writes the 512² image) ends the process at once with status 130. Either way the
+    // outputs are whole or absent, and no hidden staging folder is left behind.
+    let d = dir("second-signal");
+    let out = d.join("out");
+    let cornell = format!("{ROOT}/scenes/cornell_box.toml");
+    let child = Command::new(BIN)
+        .args(["run", &cornell, "--photons", "10000000000", "--quiet", "--out", s(&out)])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(2500));
+    for _ in 0..2 {
+        assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    }
+    let o = child.wait_with_output().unwrap();
+    match o.status.code() {
+        Some(130) => assert!(!out.exists(), "a half-moved output folder after status 130"),
+        Some(3) => assert!(out.join("run.json").exists() && out.join("image.exr").exists()),
+        other => panic!("exit {other:?}\n{}", text(&o)),
+    }
+    let left: Vec<_> = fs::read_dir(&d).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(left.iter().all(|n| !n.to_string_lossy().contains("staging")), "left behind: {left:?}");
+}
+
+#[test]
 fn converge_and_validate_keep_what_they_have_on_a_signal() {
     let out = dir("signal-converge");
     let cornell = format!("{ROOT}/scenes/cornell_box.toml");

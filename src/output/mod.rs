@@ -441,6 +441,25 @@ pub fn spectrum_file_name(surface: &str) -> String {
     format!("spectrum_{}.csv", crate::scene::map::file_stem(surface))
 }
 
+/// Staging folders of the `OutputDir`s not yet committed or dropped, so that a process ending at
+/// once (a second Ctrl-C) can still take them away: `remove_staging_folders`.
+static STAGING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Removes every staging folder still open: for a process about to exit without unwinding.
+pub fn remove_staging_folders() {
+    if let Ok(mut open) = STAGING.lock() {
+        for d in open.drain(..) {
+            let _ = std::fs::remove_dir_all(d);
+        }
+    }
+}
+
+fn forget_staging(dir: &Path) {
+    if let Ok(mut open) = STAGING.lock() {
+        open.retain(|d| d != dir);
+    }
+}
+
 /// An output folder being written. Files go into a hidden staging folder first (inside the
 /// target when it exists, else beside it, so the final renames stay on one file system), and
 /// `commit` moves them into place: a new folder appears whole by one rename; into an existing
@@ -498,6 +517,9 @@ impl OutputDir {
             dir.staging = PathBuf::new();
             return Err(usage(format!("cannot write there: {e}")));
         }
+        if let Ok(mut open) = STAGING.lock() {
+            open.push(dir.staging.clone());
+        }
         for name in names {
             let probe = dir.staging.join(name);
             let tried = (|| {
@@ -533,6 +555,7 @@ impl OutputDir {
             match std::fs::rename(&self.staging, &self.target) {
                 Ok(()) => {
                     self.committed = true;
+                    forget_staging(&self.staging);
                     return Ok(());
                 }
                 // Another process made the folder meanwhile: move the files in one by one.
@@ -550,6 +573,7 @@ impl OutputDir {
         }
         self.committed = true;
         let _ = std::fs::remove_dir_all(&self.staging);
+        forget_staging(&self.staging);
         for f in previous.iter().filter(|f| !new.contains(f)) {
             let _ = std::fs::remove_file(self.target.join(f));
         }
@@ -567,6 +591,7 @@ impl Drop for OutputDir {
         if !self.committed {
             if !self.staging.as_os_str().is_empty() {
                 let _ = std::fs::remove_dir_all(&self.staging);
+                forget_staging(&self.staging);
             }
             for d in &self.created {
                 let _ = std::fs::remove_dir(d);
