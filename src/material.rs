@@ -41,10 +41,18 @@ pub fn reflect(d: Vec3A, n: Vec3A) -> Vec3A {
     (d - 2.0 * d.dot(n) * n).normalize()
 }
 
+/// Snell refraction of travel direction `d` into the side opposite `n_in` (the unit normal on
+/// the side `d` comes from): t = η d + (η cosθ_i − cosθ_t) n_in, η = η_i/η_t.
+#[inline]
+pub fn refract(d: Vec3A, n_in: Vec3A, eta_i: f64, eta_t: f64, cos_i: f64, cos_t: f64) -> Vec3A {
+    let eta = (eta_i / eta_t) as f32;
+    (eta * d + (eta * cos_i as f32 - cos_t as f32) * n_in).normalize()
+}
+
 /// Indices of refraction (incident side, transmitted side) for travel direction `d`: the inside
 /// is the side opposite the normal.
 #[inline]
-fn etas(ior: f64, outside: f64, d: Vec3A, n: Vec3A) -> (f64, f64) {
+pub fn etas(ior: f64, outside: f64, d: Vec3A, n: Vec3A) -> (f64, f64) {
     if d.dot(n) < 0.0 {
         (outside, ior)
     } else {
@@ -114,10 +122,7 @@ pub fn sample_scatter(m: &Material, lambda_nm: f64, d: Vec3A, n: Vec3A, s: &mut 
             if s.uniform() < r {
                 (reflect(d, n), Lobe::SpecularReflection)
             } else {
-                // Snell refraction: t = η d + (η cosθ_i − cosθ_t) n_in, η = η_i/η_t.
-                let eta = (eta_i / eta_t) as f32;
-                let t = eta * d + (eta * cos_i as f32 - cos_t as f32) * n_in;
-                (t.normalize(), Lobe::SpecularTransmission)
+                (refract(d, n_in, eta_i, eta_t, cos_i, cos_t), Lobe::SpecularTransmission)
             }
         }
         Material::Absorber => unreachable!("an absorber scatters nothing (albedo 0)"),

@@ -26,7 +26,7 @@ use std::ops::{Mul, MulAssign};
 use crate::emitter::Emitter;
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{Geometry, RayEnd};
-use crate::material::{fresnel_dielectric, reflect};
+use crate::material::{etas, fresnel_dielectric, reflect, refract};
 use crate::sampling::{cosine_hemisphere, Sampler};
 use crate::scene::{Material, Scene};
 use crate::spectrum::Spectrum;
@@ -290,20 +290,18 @@ fn scatter_specular<const SPECTRAL: bool>(
             }
             // Lane 0 decides: without dispersion every lane has the same η and Fresnel term.
             let (ior, outside) = (ior.eval(wl.lambda[0]), outside_ior.eval(wl.lambda[0]));
-            let entering = d.dot(n) < 0.0;
-            let (eta_i, eta_t) = if entering { (outside, ior) } else { (ior, outside) };
+            let (eta_i, eta_t) = etas(ior, outside, d, n);
             let cos_i = (d.dot(n).abs() as f64).min(1.0);
             let (r, cos_t) = fresnel_dielectric(cos_i, eta_i, eta_t);
             // Reflect with probability R, refract with 1 − R: the Fresnel factors cancel.
             if s.uniform() < r {
                 Some(reflect(d, n))
             } else {
-                let n_in = if entering { n } else { -n };
-                let eta = (eta_i / eta_t) as f32;
+                let n_in = if d.dot(n) < 0.0 { n } else { -n };
                 if mode == Mode::Radiance {
                     *beta *= (eta_i / eta_t).powi(2);
                 }
-                Some((eta * d + (eta * cos_i as f32 - cos_t as f32) * n_in).normalize())
+                Some(refract(d, n_in, eta_i, eta_t, cos_i, cos_t))
             }
         }
         _ => None,
