@@ -2,11 +2,12 @@
 //! per-surface flux tallies with standard errors and an exact energy ledger come out.
 //!
 //! Data path: `scene` (TOML → SI triangles) → `emitter` (photon births) → `transport` (the photon
-//! loop over the `geometry` BVH, `material` decisions) → `tally` (per-history moments, ledger) →
+//! loop over the `geometry` BVH, `bsdf` scattering, `media` absorption) → `tally` (per-history moments, ledger) →
 //! `run` (batches, ordered reduction, stopping) → `output` (staged files). Modules are layered
 //! one way down (see `tests/layers.rs` for the order): none names a module above it.
 
 pub mod batch;
+pub mod bsdf;
 pub mod camera_paths;
 pub mod color;
 pub mod converge;
@@ -15,7 +16,7 @@ pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod ies;
-pub mod material;
+pub mod media;
 pub mod output;
 pub mod photometry;
 pub mod run;

@@ -5,6 +5,79 @@ use std::path::Path;
 
 use crate::error::InputError;
 
+/// A value per wavelength lane: one lane for a particle's own wavelength, four for hero
+/// wavelengths and camera samples. In grey transport every lane holds the same value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lanes<const N: usize = 4>(pub [f64; N]);
+
+impl<const N: usize> Lanes<N> {
+    pub const ZERO: Lanes<N> = Lanes([0.0; N]);
+    pub const ONE: Lanes<N> = Lanes([1.0; N]);
+
+    #[inline]
+    pub fn splat(v: f64) -> Self {
+        Lanes([v; N])
+    }
+
+    /// The spectrum at wavelengths `lambda` (once, and repeated, in grey transport).
+    #[inline]
+    pub fn eval<const SPECTRAL: bool>(spectrum: &Spectrum, lambda: &[f64; N]) -> Self {
+        if SPECTRAL {
+            Lanes(lambda.map(|l| spectrum.eval(l)))
+        } else {
+            Lanes::splat(spectrum.eval(f64::NAN))
+        }
+    }
+
+    #[inline]
+    pub fn mean(&self) -> f64 {
+        self.0.iter().sum::<f64>() / N as f64
+    }
+
+    #[inline]
+    pub fn is_zero(&self) -> bool {
+        self.0.iter().all(|&v| v == 0.0)
+    }
+}
+
+impl<const N: usize> std::ops::Add for Lanes<N> {
+    type Output = Lanes<N>;
+    #[inline]
+    fn add(self, o: Lanes<N>) -> Lanes<N> {
+        Lanes(std::array::from_fn(|k| self.0[k] + o.0[k]))
+    }
+}
+
+impl<const N: usize> std::ops::Mul for Lanes<N> {
+    type Output = Lanes<N>;
+    #[inline]
+    fn mul(self, o: Lanes<N>) -> Lanes<N> {
+        Lanes(std::array::from_fn(|k| self.0[k] * o.0[k]))
+    }
+}
+
+impl<const N: usize> std::ops::Mul<f64> for Lanes<N> {
+    type Output = Lanes<N>;
+    #[inline]
+    fn mul(self, o: f64) -> Lanes<N> {
+        Lanes(self.0.map(|v| v * o))
+    }
+}
+
+impl<const N: usize> std::ops::MulAssign for Lanes<N> {
+    #[inline]
+    fn mul_assign(&mut self, o: Lanes<N>) {
+        *self = *self * o;
+    }
+}
+
+impl<const N: usize> std::ops::MulAssign<f64> for Lanes<N> {
+    #[inline]
+    fn mul_assign(&mut self, o: f64) {
+        *self = *self * o;
+    }
+}
+
 /// Planck's constant (J s), speed of light (m/s), Boltzmann's constant (J/K); CODATA 2018 exact values.
 const PLANCK_H: f64 = 6.626_070_15e-34;
 const LIGHT_C: f64 = 299_792_458.0;

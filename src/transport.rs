@@ -7,10 +7,11 @@ use std::sync::atomic::AtomicBool;
 
 use glam::Vec3A;
 
+use crate::bsdf::{Bsdf, Mode};
 use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{Geometry, RayEnd};
-use crate::material::{albedo, lobe_factor, sample_scatter, Lobe};
+use crate::media;
 use crate::photometry;
 use crate::sampling::Sampler;
 use crate::scene::map::SurfaceMap;
@@ -286,9 +287,9 @@ impl Kernel<'_> {
                 // absorbed by the medium, tallied to its surface. The medium is the dielectric the
                 // photon last refracted into, or the one its light sits in (`Emitter::medium_at`).
                 if let Some(m) = medium {
-                    if let Material::Dielectric { absorption_per_m: Some(alpha), .. } = materials[m as usize] {
+                    if let Some(alpha) = media::absorption(materials[m as usize]) {
                         let t = hit.t as f64;
-                        let keep = (-alpha.eval(lambda) * t).exp();
+                        let keep = media::transmittance::<SPECTRAL, 1>(alpha, &[lambda], t).0[0];
                         if EXPECTED && weight >= ROULETTE_WEIGHT {
                             absorb(m, weight * (1.0 - keep), lambda, &mut absorbed, &mut spectra_absorbed);
                             weight *= keep;
@@ -301,10 +302,8 @@ impl Kernel<'_> {
                             break;
                         }
                         if HERO {
-                            hero.event::<EXPECTED>(|_, l| {
-                                let k = (-alpha.eval(l) * t).exp();
-                                (k, k)
-                            });
+                            let k = media::transmittance::<true, 4>(alpha, &hero.lambda, t);
+                            hero.event::<EXPECTED>(|i| (k.0[i], k.0[i]));
                         }
                     }
                 }
@@ -322,35 +321,32 @@ impl Kernel<'_> {
                         spectra.add((first + k) as u32, weight);
                     }
                 }
-                // ρ and τ of a Lambertian surface at the four hero wavelengths, read once here for
-                // both the camera splat and the scattering event (a table lookup each).
-                let hero_rho_tau = match material {
-                    Material::Lambertian { reflectance, transmittance } if HERO => {
-                        Some((hero.lambda.map(|l| reflectance.eval(l)), hero.lambda.map(|l| transmittance.eval(l))))
-                    }
-                    _ => None,
-                };
-                if let (true, Some(cam), Some(film), Material::Lambertian { reflectance, transmittance }) =
-                    (CAMERA, self.camera, film.as_deref_mut(), material)
-                {
-                    // f = ρ/π toward the side the photon came from, τ/π through; times |cosθ_x|.
-                    let n_in = if dir.dot(n) < 0.0 { n } else { -n };
-                    splat(cam, geo, film, p, err, n, hit.prim, |w| {
-                        let cos = w.dot(n_in);
-                        let geometric = cos.abs() * std::f32::consts::FRAC_1_PI;
-                        match hero_rho_tau {
-                            Some((rho, tau)) => hero.splat_xyz(if cos > 0.0 { rho } else { tau }) * geometric,
-                            None => {
-                                let lobe =
-                                    if cos > 0.0 { reflectance.eval(lambda) } else { transmittance.eval(lambda) };
-                                birth.xyz * (weight * lobe) as f32 * geometric
+                // The material at the photon's wavelength, and at the hero lanes for the image; read
+                // once here for both the camera splat and the scattering event.
+                let wo = -dir;
+                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, &[lambda], n);
+                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, &hero.lambda, n));
+                if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
+                    if bsdf.is_connectible() {
+                        // f(wo, ω)·|cosθ_ω| toward the camera: the lanes' part in f64, the angular in f32.
+                        splat(cam, geo, film, p, err, n, hit.prim, |w| {
+                            let geometric = w.dot(n).abs();
+                            match &hero_bsdf {
+                                Some(hb) => {
+                                    let f = hb.f(wo, w, Mode::Importance);
+                                    hero.splat_xyz(f.spectral.0) * (geometric * f.angular as f32)
+                                }
+                                None => {
+                                    let f = bsdf.f(wo, w, Mode::Importance);
+                                    birth.xyz * (weight * f.spectral.0[0]) as f32 * (geometric * f.angular as f32)
+                                }
                             }
-                        }
-                    });
+                        });
+                    }
                 }
 
                 // Absorb or carry on.
-                let a = albedo(material, lambda);
+                let a = bsdf.albedo().0[0];
                 if EXPECTED && weight >= ROULETTE_WEIGHT {
                     if a < 1.0 {
                         absorb(surface, weight * (1.0 - a), lambda, &mut absorbed, &mut spectra_absorbed);
@@ -364,17 +360,17 @@ impl Kernel<'_> {
                     break;
                 }
                 out.counters.fresnel_evaluations += is_dielectric as u64;
-                let (new_dir, lobe) = sample_scatter(material, lambda, dir, n, &mut s);
-                if HERO {
-                    match hero_rho_tau {
-                        Some((rho, tau)) => hero.event::<EXPECTED>(|k, _| {
-                            let factor = if lobe == Lobe::DiffuseReflection { rho[k] } else { tau[k] };
-                            (factor, rho[k] + tau[k])
-                        }),
-                        None => {
-                            hero.event::<EXPECTED>(|_, l| (lobe_factor(material, lobe, l, dir, n), albedo(material, l)))
-                        }
-                    }
+                // Every model here samples in proportion to f·|cos|/albedo, so a survivor keeps its weight.
+                let Some(sampled) = bsdf.sample(wo, Mode::Importance, &mut s) else {
+                    // Only a zero density (a direction exactly in the plane) gets here.
+                    absorb(surface, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                    break;
+                };
+                let new_dir = sampled.wi;
+                if let Some(hb) = &hero_bsdf {
+                    let factor = hb.lobe_factor(sampled.lobe, wo, Mode::Importance);
+                    let albedo = hb.albedo();
+                    hero.event::<EXPECTED>(|k| (factor.0[k], albedo.0[k]));
                 }
                 if scatterings == max_bounces {
                     out.truncated += weight;
@@ -382,8 +378,7 @@ impl Kernel<'_> {
                 }
                 scatterings += 1;
                 if is_dielectric {
-                    // Inside is the side opposite the normal.
-                    medium = (new_dir.dot(n) < 0.0).then_some(surface);
+                    medium = media::after_crossing(surface, n, new_dir);
                 }
                 origin = geo.spawn(p, err, hit.prim, new_dir);
                 dir = new_dir;
@@ -479,11 +474,11 @@ impl Hero {
         }
     }
 
-    /// One event whose throughput factor and albedo at λₖ are `at(k, λₖ)`.
+    /// One event whose throughput factor and albedo at λₖ are `at(k)`.
     #[inline]
-    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(usize, f64) -> (f64, f64)) {
+    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(usize) -> (f64, f64)) {
         for k in 0..4 {
-            let (factor, albedo) = at(k, self.lambda[k]);
+            let (factor, albedo) = at(k);
             self.throughput[k] *= factor;
             if EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT {
                 self.probability[k] *= if albedo > 0.0 { factor / albedo } else { 0.0 };

@@ -10,8 +10,8 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 use glam::Vec3A;
+use photon::bsdf::{Bsdf, Mode};
 use photon::emitter::Emitter;
-use photon::material::sample_scatter;
 use photon::sampling::{cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, Sampler};
 use photon::scene::{LightShape, Material};
 use photon::spectrum::Spectrum;
@@ -198,7 +198,7 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian reflect + transmit",
         9,
-        |s| sample_scatter(&m, 550.0, d, n, s).0,
+        |s| Bsdf::<1>::new::<true>(&m, &[550.0], n).sample(-d, Mode::Importance, s).unwrap().wi,
         |w| {
             let c = w.z as f64;
             (0.3 * c.max(0.0) + 0.5 * (-c).max(0.0)) / (PI * 0.8)
@@ -209,7 +209,7 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian from below",
         10,
-        |s| sample_scatter(&m, 550.0, up, n, s).0,
+        |s| Bsdf::<1>::new::<true>(&m, &[550.0], n).sample(-up, Mode::Importance, s).unwrap().wi,
         |w| {
             let c = w.z as f64;
             (0.3 * (-c).max(0.0) + 0.5 * c.max(0.0)) / (PI * 0.8)

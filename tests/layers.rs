@@ -13,7 +13,7 @@ const LAYERS: &[&[&str]] = &[
     &["color"],
     &["photometry"],
     &["scene"],
-    &["batch", "material", "emitter", "film", "tally"],
+    &["batch", "bsdf", "media", "emitter", "film", "tally"],
     &["camera_paths"],
     &["transport"],
     &["run"],

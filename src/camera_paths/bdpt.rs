@@ -17,13 +17,12 @@
 
 use glam::Vec3A;
 
-use super::{
-    emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
-};
+use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
+use crate::bsdf::{Bsdf, Mode};
 use crate::film::FilmBatch;
 use crate::geometry::{RayEnd, NO_PRIM};
+use crate::media;
 use crate::sampling::Sampler;
-use crate::scene::Material;
 use crate::tally::Counters;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -48,8 +47,8 @@ struct Vertex {
     pdf_fwd: f64,
     pdf_rev: f64,
     delta: bool,
-    /// The BSDF of a diffuse vertex (None for specular and absorbing ones: not connectible).
-    diffuse: Option<Diffuse>,
+    /// The BSDF of a connectible vertex (None for specular and absorbing ones).
+    bsdf: Option<Bsdf>,
     /// A light vertex's emission axis.
     axis: Vec3A,
     /// The absorbing or clear dielectric a surface vertex was reached through (None outside any).
@@ -74,7 +73,7 @@ impl Vertex {
             pdf_fwd,
             pdf_rev: 0.0,
             delta: false,
-            diffuse: None,
+            bsdf: None,
             axis: n,
             medium: None,
         }
@@ -269,35 +268,29 @@ impl ImageKernel<'_> {
             v.wo = -dir;
             v.medium = medium;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
-            if let Material::Lambertian { reflectance, transmittance } = material {
-                v.diffuse = Some(Diffuse::new::<SPECTRAL>(reflectance, transmittance, wl));
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &wl.lambda, n);
+            if bsdf.is_connectible() {
+                v.bsdf = Some(bsdf);
             }
             path.push(v);
-            if path.len() >= max_len {
+            if path.len() >= max_len || bsdf.is_absorber() {
                 break;
             }
-            let (new_dir, pdf_fwd, pdf_rev) = match material {
-                Material::Lambertian { .. } => {
-                    let bsdf = v.diffuse.expect("set above");
-                    let Some((wi, pdf, factor)) = bsdf.sample(-dir, n, s) else { break };
-                    beta *= factor;
-                    (wi, pdf, bsdf.pdf(wi, -dir, n))
-                }
-                Material::Absorber => break,
-                _ => {
-                    let dispersive = self.dispersive[surface as usize];
-                    let Some(wi) = scatter_specular::<SPECTRAL>(material, dispersive, wl, dir, n, mode, &mut beta, s)
-                    else {
-                        break;
-                    };
-                    path[index].delta = true;
-                    (wi, 0.0, 0.0)
-                }
+            if self.dispersive[surface as usize] {
+                wl.terminate_secondary();
+            }
+            let Some(sampled) = scatter(&bsdf, -dir, mode, &mut beta, s) else { break };
+            let new_dir = sampled.wi;
+            let (pdf_fwd, pdf_rev) = if sampled.lobe.is_delta() {
+                path[index].delta = true;
+                (0.0, 0.0)
+            } else {
+                (sampled.pdf, bsdf.pdf(new_dir, -dir))
             };
             path[index - 1].pdf_rev = to_area(pdf_rev, p, &path[index - 1]);
             pdf_dir = pdf_fwd;
             if is_dielectric {
-                medium = (new_dir.dot(n) < 0.0).then_some(surface);
+                medium = media::after_crossing(surface, n, new_dir);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -309,7 +302,7 @@ impl ImageKernel<'_> {
         match v.kind {
             Kind::Camera => true,
             Kind::Light(l) => !self.emitter.is_collimated(l),
-            Kind::Surface => v.diffuse.is_some_and(|d| d.connectible()),
+            Kind::Surface => v.bsdf.is_some_and(|b| b.mean_albedo() > 0.0),
         }
     }
 
@@ -332,7 +325,8 @@ impl ImageKernel<'_> {
     /// Scattering factor at `v` toward unit `w`: the BSDF at a surface; at a light vertex its
     /// emission pattern p(ω)/|cosθ| (p(ω) at a point light), so that β₀ · factor · G is the
     /// emitted power per solid angle and area reaching the next vertex.
-    fn vertex_f(&self, v: &Vertex, w: Vec3A) -> Lanes {
+    /// `mode` is the subpath's: importance on the light side, radiance on the camera side.
+    fn vertex_f(&self, v: &Vertex, w: Vec3A, mode: Mode) -> Lanes {
         match v.kind {
             Kind::Light(l) => {
                 let pdf = self.emitter.direction_pdf(l, v.axis, w) as f64;
@@ -347,7 +341,7 @@ impl ImageKernel<'_> {
                     }
                 }
             }
-            Kind::Surface => v.diffuse.map_or(Lanes::ZERO, |d| d.f(v.wo, w, v.n)),
+            Kind::Surface => v.bsdf.map_or(Lanes::ZERO, |b| b.f(v.wo, w, mode).value()),
             Kind::Camera => Lanes::ZERO,
         }
     }
@@ -358,10 +352,10 @@ impl ImageKernel<'_> {
             Kind::Light(_) => self.pdf_light(v, next),
             Kind::Camera => to_area(self.camera.direction_pdf((next.p - v.p).normalize()), v.p, next),
             Kind::Surface => {
-                let (Some(d), Some(prev)) = (v.diffuse, prev) else { return 0.0 };
+                let (Some(b), Some(prev)) = (v.bsdf, prev) else { return 0.0 };
                 let wp = (prev.p - v.p).normalize();
                 let wn = (next.p - v.p).normalize();
-                to_area(d.pdf(wp, wn, v.n), v.p, next)
+                to_area(b.pdf(wp, wn), v.p, next)
             }
         }
     }
@@ -409,7 +403,7 @@ impl ImageKernel<'_> {
             let proj = self.camera.project(qs.p)?;
             let w = proj.to_camera;
             let cos = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
-            let c = qs.beta * self.vertex_f(qs, w) * (cos * proj.importance as f64);
+            let c = qs.beta * self.vertex_f(qs, w, Mode::Importance) * (cos * proj.importance as f64);
             if c.is_zero() {
                 return None;
             }
@@ -429,7 +423,11 @@ impl ImageKernel<'_> {
             let w = d.normalize();
             let cos_q = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
             let cos_p = pt.n.dot(w).abs() as f64;
-            let mut c = qs.beta * self.vertex_f(qs, w) * self.vertex_f(pt, -w) * pt.beta * (cos_q * cos_p / d2);
+            let mut c = qs.beta
+                * self.vertex_f(qs, w, Mode::Importance)
+                * self.vertex_f(pt, -w, Mode::Radiance)
+                * pt.beta
+                * (cos_q * cos_p / d2);
             // A visible segment crosses no dielectric boundary, so it lies in the medium the
             // camera vertex sits in; Beer–Lambert applies to it as to the sampled segments.
             if let Some(t) = pt.medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {

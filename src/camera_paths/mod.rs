@@ -21,84 +21,22 @@ mod bdpt;
 mod path;
 
 use glam::Vec3A;
-use std::ops::{Mul, MulAssign};
 
+use crate::bsdf::{Bsdf, Mode, Sample};
 use crate::emitter::Emitter;
 use crate::film::{CameraModel, FilmBatch};
 use crate::geometry::{Geometry, RayEnd};
-use crate::material::{etas, fresnel_dielectric, reflect, refract};
-use crate::sampling::{cosine_hemisphere, Sampler};
+use crate::media;
+use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
-use crate::spectrum::Spectrum;
 use crate::tally::Counters;
 
 pub use crate::scene::Integrator;
 
 pub const LANES: usize = 4;
 
-/// A value per wavelength lane.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lanes(pub [f64; LANES]);
-
-impl Lanes {
-    pub const ZERO: Lanes = Lanes([0.0; LANES]);
-    pub const ONE: Lanes = Lanes([1.0; LANES]);
-
-    #[inline]
-    pub fn splat(v: f64) -> Self {
-        Lanes([v; LANES])
-    }
-
-    /// The spectrum at the sample's wavelengths (once, for grey transport).
-    #[inline]
-    pub fn eval<const SPECTRAL: bool>(spectrum: &Spectrum, wl: &Wavelengths) -> Self {
-        if SPECTRAL {
-            Lanes(wl.lambda.map(|l| spectrum.eval(l)))
-        } else {
-            Lanes::splat(spectrum.eval(f64::NAN))
-        }
-    }
-
-    #[inline]
-    pub fn mean(&self) -> f64 {
-        self.0.iter().sum::<f64>() / LANES as f64
-    }
-
-    #[inline]
-    pub fn is_zero(&self) -> bool {
-        self.0.iter().all(|&v| v == 0.0)
-    }
-}
-
-impl Mul for Lanes {
-    type Output = Lanes;
-    #[inline]
-    fn mul(self, o: Lanes) -> Lanes {
-        Lanes(std::array::from_fn(|k| self.0[k] * o.0[k]))
-    }
-}
-
-impl Mul<f64> for Lanes {
-    type Output = Lanes;
-    #[inline]
-    fn mul(self, o: f64) -> Lanes {
-        Lanes(self.0.map(|v| v * o))
-    }
-}
-
-impl MulAssign for Lanes {
-    #[inline]
-    fn mul_assign(&mut self, o: Lanes) {
-        *self = *self * o;
-    }
-}
-
-impl MulAssign<f64> for Lanes {
-    #[inline]
-    fn mul_assign(&mut self, o: f64) {
-        *self = *self * o;
-    }
-}
+/// A value per wavelength lane of a camera sample (`LANES` of them, the default).
+pub use crate::spectrum::Lanes;
 
 /// The wavelengths of one camera sample (see the module comment).
 pub struct Wavelengths {
@@ -190,122 +128,18 @@ fn emitted_radiance<const SPECTRAL: bool>(
     light_share::<SPECTRAL>(emitter, light, wl) * (emitter.power_w(light) * pdf * emitter.position_pdf(light) / cos)
 }
 
-/// A Lambertian vertex at the sample's wavelengths. The lobe is chosen with the lanes' mean
-/// albedos and survival (Russian roulette) has probability min(1, mean(ρ + τ)), both independent
-/// of λ, so one sampled direction serves every lane.
-#[derive(Clone, Copy, Debug)]
-pub struct Diffuse {
-    rho: Lanes,
-    tau: Lanes,
-    p_reflect: f64,
-    survival: f64,
-}
-
-impl Diffuse {
-    #[inline]
-    pub fn new<const SPECTRAL: bool>(reflectance: &Spectrum, transmittance: &Spectrum, wl: &Wavelengths) -> Self {
-        let rho = Lanes::eval::<SPECTRAL>(reflectance, wl);
-        let tau = Lanes::eval::<SPECTRAL>(transmittance, wl);
-        let (r, t) = (rho.mean(), tau.mean());
-        let p_reflect = if r + t > 0.0 { r / (r + t) } else { 1.0 };
-        Diffuse { rho, tau, p_reflect, survival: (r + t).min(1.0) }
-    }
-
-    /// BSDF between unit directions `wo` and `wi`, both pointing away from the surface: ρ/π on
-    /// the same side, τ/π through (symmetric, so either may be the incoming one).
-    #[inline]
-    pub fn f(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Lanes {
-        let same_side = wo.dot(n) * wi.dot(n) > 0.0;
-        (if same_side { self.rho } else { self.tau }) * std::f64::consts::FRAC_1_PI
-    }
-
-    /// Solid-angle pdf of sampling `wi` from `wo` (roulette left out, as MIS allows).
-    #[inline]
-    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
-        let cos_i = wi.dot(n);
-        let lobe = if wo.dot(n) * cos_i > 0.0 { self.p_reflect } else { 1.0 - self.p_reflect };
-        lobe * cos_i.abs() as f64 * std::f64::consts::FRAC_1_PI
-    }
-
-    /// Samples `wi` from `wo`: None when roulette absorbs the path; else the direction, its pdf
-    /// and the throughput factor f·|cosθ|/(pdf · survival).
-    #[inline]
-    pub fn sample(&self, wo: Vec3A, n: Vec3A, s: &mut Sampler) -> Option<(Vec3A, f64, Lanes)> {
-        if !(s.uniform() < self.survival) {
-            return None;
-        }
-        let n_out = if wo.dot(n) > 0.0 { n } else { -n };
-        let reflect = s.uniform() < self.p_reflect;
-        let (u1, u2) = (s.uniform_f32(), s.uniform_f32());
-        let wi = cosine_hemisphere(if reflect { n_out } else { -n_out }, u1, u2);
-        let pdf = self.pdf(wo, wi, n);
-        if !(pdf > 0.0) {
-            return None;
-        }
-        // f|cos|/pdf = (ρ/π)|cos| / (P_lobe |cos|/π) = ρ/P_lobe.
-        let (lanes, p) = if reflect { (self.rho, self.p_reflect) } else { (self.tau, 1.0 - self.p_reflect) };
-        Some((wi, pdf, lanes * (1.0 / (p * self.survival))))
-    }
-
-    pub fn connectible(&self) -> bool {
-        self.survival > 0.0
-    }
-}
-
-/// Which way a subpath carries its quantity: camera paths carry radiance, light paths power.
-/// Refraction scales radiance by (η_i/η_t)² but not power (Veach 1997, §5.2).
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub enum Mode {
-    Radiance,
-    Importance,
-}
-
-/// A specular event at a mirror or dielectric: the new direction, or None when roulette absorbs
-/// the path (mirrors of reflectance below 1). `beta` is updated; `d` is the travel direction.
+/// Russian roulette on the vertex's mean albedo, independent of λ (none at a lossless
+/// boundary), then the BSDF's own sample; `beta` takes its weight over the survival
+/// probability. None ends the path.
 #[inline]
-#[allow(clippy::too_many_arguments)]
-fn scatter_specular<const SPECTRAL: bool>(
-    material: &Material,
-    dispersive: bool,
-    wl: &mut Wavelengths,
-    d: Vec3A,
-    n: Vec3A,
-    mode: Mode,
-    beta: &mut Lanes,
-    s: &mut Sampler,
-) -> Option<Vec3A> {
-    match material {
-        Material::Mirror { reflectance } => {
-            let rho = Lanes::eval::<SPECTRAL>(reflectance, wl);
-            let survival = rho.mean().min(1.0);
-            if !(s.uniform() < survival) {
-                return None;
-            }
-            *beta *= rho * (1.0 / survival);
-            Some(reflect(d, n))
-        }
-        Material::Dielectric { ior, outside_ior, .. } => {
-            if dispersive {
-                wl.terminate_secondary();
-            }
-            // Lane 0 decides: without dispersion every lane has the same η and Fresnel term.
-            let (ior, outside) = (ior.eval(wl.lambda[0]), outside_ior.eval(wl.lambda[0]));
-            let (eta_i, eta_t) = etas(ior, outside, d, n);
-            let cos_i = (d.dot(n).abs() as f64).min(1.0);
-            let (r, cos_t) = fresnel_dielectric(cos_i, eta_i, eta_t);
-            // Reflect with probability R, refract with 1 − R: the Fresnel factors cancel.
-            if s.uniform() < r {
-                Some(reflect(d, n))
-            } else {
-                let n_in = if d.dot(n) < 0.0 { n } else { -n };
-                if mode == Mode::Radiance {
-                    *beta *= (eta_i / eta_t).powi(2);
-                }
-                Some(refract(d, n_in, eta_i, eta_t, cos_i, cos_t))
-            }
-        }
-        _ => None,
+fn scatter(bsdf: &Bsdf, wo: Vec3A, mode: Mode, beta: &mut Lanes, s: &mut Sampler) -> Option<Sample<LANES>> {
+    let survival = if bsdf.absorbs() { bsdf.mean_albedo().min(1.0) } else { 1.0 };
+    if bsdf.absorbs() && !(s.uniform() < survival) {
+        return None;
     }
+    let sampled = bsdf.sample(wo, mode, s)?;
+    *beta *= sampled.weight() * (1.0 / survival);
+    Some(sampled)
 }
 
 /// What one image batch needs: the scene, its lights, the camera, and per-surface lookups.
@@ -472,12 +306,7 @@ impl<'a> ImageKernel<'a> {
     /// Beer–Lambert transmittance exp(−α(λ)t) per lane over a segment inside `medium`.
     #[inline]
     fn medium_transmittance<const SPECTRAL: bool>(&self, medium: u32, t: f32, wl: &Wavelengths) -> Option<Lanes> {
-        match self.materials[medium as usize] {
-            Material::Dielectric { absorption_per_m: Some(alpha), .. } => {
-                let a = Lanes::eval::<SPECTRAL>(alpha, wl);
-                Some(Lanes(a.0.map(|a| (-a * t as f64).exp())))
-            }
-            _ => None,
-        }
+        media::absorption(self.materials[medium as usize])
+            .map(|alpha| media::transmittance::<SPECTRAL, LANES>(alpha, &wl.lambda, t as f64))
     }
 }

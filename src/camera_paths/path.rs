@@ -4,18 +4,17 @@
 //! The two estimates of the same light are combined by multiple importance sampling with Veach's
 //! power heuristic, w_a = p_a²/(p_a² + p_b²) (Veach 1997, §9.2.4), both pdfs per solid angle.
 //! After the camera or a specular bounce (mirror, glass) only the hit counts: no light sample can
-//! pass a delta BSDF. Russian roulette on the albedo (see `Diffuse`) ends paths. A point light
+//! pass a delta BSDF. Russian roulette on the albedo (see `scatter`) ends paths. A point light
 //! in view, which no camera ray can hit, is connected to the camera directly: its pixel's samples
 //! each carry its exact share, the light tracer's emission splat (`PointView`).
 
 use glam::Vec3A;
 
-use super::{
-    emitted_radiance, light_share, scatter_specular, Arrival, Diffuse, ImageKernel, LaneXyz, Lanes, Mode, Wavelengths,
-};
+use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
+use crate::bsdf::{Bsdf, Mode};
 use crate::geometry::{RayEnd, NO_PRIM};
+use crate::media;
 use crate::sampling::Sampler;
-use crate::scene::Material;
 use crate::tally::Counters;
 
 /// Power heuristic weight of technique a against b.
@@ -85,37 +84,22 @@ impl ImageKernel<'_> {
             scatterings += 1;
 
             let (p, err) = geo.hit_point(&hit);
-            let new_dir = match material {
-                Material::Lambertian { reflectance, transmittance } => {
-                    let bsdf = Diffuse::new::<SPECTRAL>(reflectance, transmittance, &wl);
-                    let vertex = RayEnd { p, err, n, prim: hit.prim };
-                    self.next_event::<SPECTRAL>(&bsdf, vertex, medium, -dir, beta, &wl, &mut acc, s, counters);
-                    let Some((wi, pdf, factor)) = bsdf.sample(-dir, n, s) else { break };
-                    beta *= factor;
-                    bsdf_pdf = Some(pdf);
-                    wi
-                }
-                Material::Absorber => break,
-                _ => {
-                    let dispersive = self.dispersive[surface as usize];
-                    let Some(wi) = scatter_specular::<SPECTRAL>(
-                        material,
-                        dispersive,
-                        &mut wl,
-                        dir,
-                        n,
-                        Mode::Radiance,
-                        &mut beta,
-                        s,
-                    ) else {
-                        break;
-                    };
-                    bsdf_pdf = None;
-                    wi
-                }
-            };
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &wl.lambda, n);
+            if bsdf.is_absorber() {
+                break;
+            }
+            if self.dispersive[surface as usize] {
+                wl.terminate_secondary();
+            }
+            if bsdf.is_connectible() {
+                let vertex = RayEnd { p, err, n, prim: hit.prim };
+                self.next_event::<SPECTRAL>(&bsdf, vertex, medium, -dir, beta, &wl, &mut acc, s, counters);
+            }
+            let Some(sampled) = scatter(&bsdf, -dir, Mode::Radiance, &mut beta, s) else { break };
+            bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
+            let new_dir = sampled.wi;
             if is_dielectric {
-                medium = (new_dir.dot(n) < 0.0).then_some(surface);
+                medium = media::after_crossing(surface, n, new_dir);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -132,7 +116,7 @@ impl ImageKernel<'_> {
     #[inline]
     fn next_event<const SPECTRAL: bool>(
         &self,
-        bsdf: &Diffuse,
+        bsdf: &Bsdf,
         vertex: RayEnd,
         medium: Option<u32>,
         wo: Vec3A,
@@ -155,7 +139,7 @@ impl ImageKernel<'_> {
         if !(p_dir > 0.0 && d2 > 0.0) {
             return;
         }
-        let f = bsdf.f(wo, wi, n);
+        let f = bsdf.f(wo, wi, Mode::Radiance).value();
         if f.is_zero() {
             return;
         }
@@ -165,7 +149,7 @@ impl ImageKernel<'_> {
         } else {
             let cos_l = (-wi).dot(lp.normal) as f64;
             let p_light = pick * self.emitter.position_pdf(light) * d2 / cos_l;
-            power_heuristic(p_light, bsdf.pdf(wo, wi, n))
+            power_heuristic(p_light, bsdf.pdf(wo, wi))
         };
         counters.shadow_rays += 1;
         if !self.geo().visible(vertex, lp.end()) {

@@ -1,0 +1,31 @@
+//! What happens between surfaces: Beer–Lambert absorption inside a dielectric with an
+//! absorption coefficient α(λ), and which medium a path is in after crossing a boundary. Every
+//! integrator uses these; a path in a clear medium or outside every dielectric loses nothing.
+
+use glam::Vec3A;
+
+use crate::scene::Material;
+use crate::spectrum::{Lanes, Spectrum};
+
+/// The absorption coefficient (per m) of the medium inside `material`, if it absorbs.
+#[inline]
+pub fn absorption(material: &Material) -> Option<&Spectrum> {
+    match material {
+        Material::Dielectric { absorption_per_m: Some(alpha), .. } => Some(alpha),
+        _ => None,
+    }
+}
+
+/// Beer–Lambert transmittance exp(−α(λ)·t) per lane over a segment of length `t` (m).
+#[inline]
+pub fn transmittance<const SPECTRAL: bool, const N: usize>(alpha: &Spectrum, lambda: &[f64; N], t: f64) -> Lanes<N> {
+    let a = Lanes::eval::<SPECTRAL>(alpha, lambda);
+    Lanes(a.0.map(|a| (-a * t).exp()))
+}
+
+/// The medium after a path scattered at dielectric `surface` (unit normal `n`) into unit `wi`:
+/// the dielectric's interior, opposite the normal, or outside (None).
+#[inline]
+pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A) -> Option<u32> {
+    (wi.dot(n) < 0.0).then_some(surface)
+}
