@@ -35,9 +35,9 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, SamplingMode, Throughput};
+use photon::integrators::particle::{Estimator, TransportOptions};
 use photon::run::{apply_options, simulate, RunOptions, RunResult};
 use photon::scene::{load, load_str, Scene};
-use photon::transport::{Estimator, TransportOptions};
 
 const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
 

@@ -7,10 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use clap::{Parser, Subcommand};
 
 use photon::error::Error;
+use photon::integrators::particle::{Estimator, TransportOptions};
 use photon::output;
 use photon::run::{apply_options, simulate, RunOptions, StopReason};
 use photon::scene::{self, LightShape, Scene};
-use photon::transport::{Estimator, TransportOptions};
 
 #[derive(Parser)]
 #[command(name = "photon", version, about = "Forward Monte Carlo photon tracer: how much light lands where")]
@@ -128,7 +128,7 @@ struct TransportArgs {
     /// What makes the image: light tracing, path tracing or BDPT (default: the scene's
     /// `[simulation] integrator`, else light). flux.json always comes from the particle tracer.
     #[arg(long, value_enum)]
-    integrator: Option<photon::camera_paths::Integrator>,
+    integrator: Option<photon::integrators::camera::Integrator>,
 }
 
 impl TransportArgs {
@@ -286,14 +286,14 @@ fn converge(
         }
     }
     let mut scene = load_warn(scene_path)?;
-    photon::converge::check(&scene, tally)?;
+    photon::run::converge::check(&scene, tally)?;
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
     const FILES: [&str; 2] = ["convergence.csv", "convergence.png"];
     let staged = output::OutputDir::prepare(&out_dir, &FILES.map(String::from))?;
-    let c = photon::converge::converge(&mut scene, opts, tally, reference, budget, &INTERRUPT)?;
+    let c = photon::run::converge::converge(&mut scene, opts, tally, reference, budget, &INTERRUPT)?;
     print!("{}", c.table());
     output::write_atomic(staged.path(), FILES[0], c.csv().as_bytes())?;
-    c.plot(&staged.path().join(FILES[1]), &format!("{}: error against time", scene.stem()))?;
+    output::converge::plot(&c, &staged.path().join(FILES[1]), &format!("{}: error against time", scene.stem()))?;
     staged.commit(&[])?;
     println!("wrote {}: {}", out_dir.display(), FILES.join(", "));
     Ok(if c.interrupted { Outcome::Interrupted } else { Outcome::Complete })

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use glam::Vec3A;
 use photon::bsdf::{Bsdf, Mode};
-use photon::emitter::Emitter;
+use photon::lights::Emitter;
 use photon::sampling::{cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, Sampler};
 use photon::scene::{LightShape, Material};
 use photon::spectrum::Spectrum;

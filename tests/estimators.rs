@@ -6,8 +6,8 @@
 mod common;
 use common::{assert_z, cornell_toml, run_with, surface};
 
+use photon::integrators::particle::{Estimator, TransportOptions};
 use photon::output::Flux;
-use photon::transport::{Estimator, TransportOptions};
 
 fn compare(a: &Flux, b: &Flux, label: &str) {
     assert!(a.ledger.relative_residual() < 1e-9 && b.ledger.relative_residual() < 1e-9, "{label}: ledger");

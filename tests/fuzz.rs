@@ -46,11 +46,11 @@ use std::time::Instant;
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
-use photon::camera_paths::Integrator;
 use photon::error::Error;
+use photon::integrators::camera::Integrator;
+use photon::integrators::particle::{Estimator, TransportOptions};
 use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::Scene;
-use photon::transport::{Estimator, TransportOptions};
 
 const DEFAULT_CASES: usize = 400;
 const DEFAULT_SEED: u64 = 0x16_F0_22;

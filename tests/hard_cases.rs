@@ -9,10 +9,10 @@ use common::{assert_z, cornell_toml, scene, surface, temp_dir};
 use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
+use photon::integrators::particle::TransportOptions;
 use photon::output::{self, Flux};
 use photon::run::{apply_options, simulate, RunOptions, RunResult};
 use photon::scene::{load_str, Scene};
-use photon::transport::TransportOptions;
 
 fn run_scene(s: Scene, photons: u64, seed: u64) -> (Scene, RunResult) {
     run_scene_with(s, photons, seed, TransportOptions::default())
@@ -412,8 +412,8 @@ fn shadow_rays_agree_in_both_directions() {
     // origin, where hit-point offsets are far smaller than a long ray's distance error), and BDPT
     // read the box 1e-3 too dark.
     use glam::Vec3A;
-    use photon::emitter::Emitter;
     use photon::geometry::{offset_ray_origin, RayEnd};
+    use photon::lights::Emitter;
     use photon::sampling::Sampler;
     for lift in [0.0, 50.0] {
         let s = scene(&cornell_with_blocks_lifted(lift));

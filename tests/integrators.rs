@@ -13,8 +13,8 @@ use common::{cornell_toml, scene};
 
 use std::sync::atomic::AtomicBool;
 
-use photon::camera_paths::Integrator;
-use photon::film::Image;
+use photon::detectors::film::Image;
+use photon::integrators::camera::Integrator;
 use photon::run::{apply_options, simulate, RunOptions};
 
 /// Renders `toml` with `integrator` and returns the image and its mean Y with standard error.
@@ -85,7 +85,7 @@ fn cornell_box_light_path_and_bdpt_images_agree() {
 /// For each pixel, the name of the surface its central camera ray hits first, and the hit point.
 fn primary_hits(toml: &str) -> Vec<Option<(String, glam::Vec3A)>> {
     let s = scene(toml);
-    let cam = photon::film::CameraModel::new(s.camera.as_ref().unwrap());
+    let cam = photon::detectors::film::CameraModel::new(s.camera.as_ref().unwrap());
     (0..cam.pixels())
         .map(|p| {
             let d = cam.ray_direction(p, 0.5, 0.5);

@@ -9,16 +9,13 @@ use std::path::Path;
 const LAYERS: &[&[&str]] = &[
     &["error", "geometry"],
     &["sampling"],
-    &["spectrum", "ies"],
-    &["color"],
-    &["photometry"],
+    &["spectrum"],
     &["scene"],
-    &["batch", "bsdf", "media", "emitter", "film", "tally"],
-    &["camera_paths"],
-    &["transport"],
+    &["bsdf", "media", "lights", "detectors"],
+    &["integrators"],
     &["run"],
     &["output"],
-    &["converge", "validate"],
+    &["validate"],
 ];
 
 /// Every `crate::name` a file names: in paths, and inside `use crate::{a, b::c}` groups.

@@ -261,7 +261,7 @@ fn bilateral_ies_file_round_trips_through_the_far_field_in_a_turned_frame() {
     // quadrature of the interpolated table): the bin edges fall on the sampler's sub-cell edges,
     // so the expected flux per bin is exact and Σz² is χ².
     let path = format!("{}/tests/data/ies/bilateral.ies", env!("CARGO_MANIFEST_DIR"));
-    let table = photon::ies::IesProfile::read(std::path::Path::new(&path)).unwrap();
+    let table = photon::scene::ies::IesProfile::read(std::path::Path::new(&path)).unwrap();
     let frame = "direction = [1, 0, 0]\n[0, 1, 0]\nnadir = [1, 0, 0]\nc0 = [0, 1, 0]";
     let toml = ies_alone("bilateral.ies", frame, [12, 8]);
     let (f, e) = run_farfield(&toml, 2_000_000, 13);

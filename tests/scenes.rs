@@ -269,7 +269,7 @@ fn converge_follows_a_bdpt_image_at_the_monte_carlo_rate() {
     // exponent then sits within a hundredth or two of −1/2 (−0.487 and −0.490 seen). A bias in
     // the BDPT image, or a reference that shares its noise, adds an error floor that flattens
     // the tail: ±0.05 catches a floor of 60 % of the last row's error (it gives −0.45).
-    let slope = photon::converge::log_log_slope(&rows).unwrap();
+    let slope = photon::run::converge::log_log_slope(&rows).unwrap();
     assert!((slope + 0.5).abs() < 0.05, "image rRMSE ∝ N^{slope:.3}: {csv}");
     std::fs::remove_dir_all(&out).unwrap();
 }

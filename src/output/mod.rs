@@ -1,6 +1,7 @@
 //! Output files: flux.json/csv, run.json, image.exr/png, maps and far-field files (`maps`,
 //! `farfield`), staged in a hidden folder and moved into place whole (`OutputDir`).
 
+pub mod converge;
 pub mod farfield;
 pub mod maps;
 
@@ -9,10 +10,10 @@ use std::path::{Path, PathBuf};
 
 use serde::Serialize;
 
+use crate::detectors::tally::Ledger;
 use crate::error::Error;
 use crate::run::{RunResult, StopReason, BATCH_PHOTONS};
 use crate::scene::Scene;
-use crate::tally::Ledger;
 
 #[derive(Serialize, Clone, Debug)]
 pub struct SurfaceRow {
@@ -98,16 +99,16 @@ pub struct RunInfo {
     /// Here rather than in flux.json, whose numbers must not depend on timing.
     pub fom: Vec<SurfaceFom>,
     /// Work done: rays, visibility rays, Fresnel evaluations, splats; and rays per second.
-    pub counters: crate::tally::Counters,
+    pub counters: crate::detectors::tally::Counters,
     pub rays_per_second: f64,
     /// The transport options and whether the image used hero wavelengths.
-    pub transport_options: crate::transport::TransportOptions,
+    pub transport_options: crate::integrators::particle::TransportOptions,
     /// With `--estimator auto`: the pilot's figures for each estimator and the one chosen.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimator_pilot: Option<crate::run::EstimatorPilot>,
     pub hero_wavelengths: bool,
     /// What made the image (flux always comes from the particle tracer).
-    pub integrator: crate::camera_paths::Integrator,
+    pub integrator: crate::integrators::camera::Integrator,
     /// Mean Y over the image and its standard error, when an image was made.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub image_mean_y: Option<(f64, f64)>,
@@ -294,7 +295,7 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
 }
 
 /// image.exr: linear R, G, B (sRGB primaries, D65), Y (CIE 1931) and Y_var, f32.
-pub fn write_exr(dir: &Path, image: &crate::film::Image, layer_name: &str) -> Result<PathBuf, Error> {
+pub fn write_exr(dir: &Path, image: &crate::detectors::film::Image, layer_name: &str) -> Result<PathBuf, Error> {
     use exr::prelude::*;
     let (w, h) = (image.width, image.height);
     let plane = |c: usize| -> Vec<f32> { image.rgb.index_axis(ndarray::Axis(2), c).iter().copied().collect() };
@@ -318,7 +319,7 @@ pub fn write_exr(dir: &Path, image: &crate::film::Image, layer_name: &str) -> Re
 /// Exposure of the PNG preview: the log-average luminance of the lit pixels maps to middle grey
 /// 0.18 (Reinhard et al. 2002, "key" 0.18), then L/(1 + L) compresses highlights such as the
 /// lamp itself, and the sRGB curve encodes.
-pub fn preview_exposure(image: &crate::film::Image) -> f32 {
+pub fn preview_exposure(image: &crate::detectors::film::Image) -> f32 {
     let ys: Vec<f64> = image.xyz.column(1).iter().filter(|&&y| y > 0.0).map(|&y| y as f64).collect();
     if ys.is_empty() {
         return 1.0;
@@ -327,7 +328,7 @@ pub fn preview_exposure(image: &crate::film::Image) -> f32 {
     (0.18 / log_avg) as f32
 }
 
-pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Error> {
+pub fn write_png(dir: &Path, image: &crate::detectors::film::Image) -> Result<PathBuf, Error> {
     let exposure = preview_exposure(image);
     let mut data = Vec::with_capacity(image.width * image.height * 3);
     for p in 0..image.width * image.height {
@@ -336,7 +337,7 @@ pub fn write_png(dir: &Path, image: &crate::film::Image) -> Result<PathBuf, Erro
         let compress = if y > 0.0 { 1.0 / (1.0 + y) } else { 1.0 };
         for c in 0..3 {
             let v = (image.rgb[[row, col, c]] * exposure * compress).clamp(0.0, 1.0);
-            data.push((crate::color::srgb_encode(v) * 255.0 + 0.5) as u8);
+            data.push((crate::spectrum::color::srgb_encode(v) * 255.0 + 0.5) as u8);
         }
     }
     let mut bytes = Vec::new();

@@ -11,7 +11,7 @@ use std::f64::consts::PI;
 
 use glam::Vec3A;
 
-use crate::ies::Frame;
+use crate::scene::ies::Frame;
 
 #[derive(Clone, Debug)]
 pub struct FarField {

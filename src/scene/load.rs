@@ -12,7 +12,7 @@ use super::shapes::{self, ShapeSpec};
 use super::*;
 use crate::error::{Error, InputError};
 use crate::geometry::Geometry;
-use crate::photometry;
+use crate::spectrum::photometry;
 use crate::spectrum::Spectrum;
 
 const ROOT_KEYS: &[&str] =
@@ -1030,7 +1030,7 @@ impl<'s> Loader<'s> {
                 let rel = t.req_str("ies")?;
                 let file = self.base_dir.join(rel);
                 let line = t.line_of_key("ies");
-                let profile = crate::ies::IesProfile::read(&file).map_err(|mut e| {
+                let profile = crate::scene::ies::IesProfile::read(&file).map_err(|mut e| {
                     e.message = format!(
                         "{} (IES file named by `{}` at {}:{line})",
                         e.message,
@@ -1140,7 +1140,7 @@ impl<'s> Loader<'s> {
                 out.push(crate::scene::farfield::FarField {
                     name,
                     resolution,
-                    frame: crate::ies::Frame::new(nadir, c0),
+                    frame: crate::scene::ies::Frame::new(nadir, c0),
                     offset,
                 });
                 Ok(())

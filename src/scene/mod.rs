@@ -3,6 +3,7 @@
 
 mod doc;
 pub mod farfield;
+pub mod ies;
 mod load;
 pub mod map;
 mod obj;
@@ -131,7 +132,7 @@ pub struct Light {
 /// An IES light's table, and its C = 0 direction (scene axes) when the scene gives one.
 #[derive(Clone, Debug)]
 pub struct IesLight {
-    pub profile: std::sync::Arc<crate::ies::IesProfile>,
+    pub profile: std::sync::Arc<crate::scene::ies::IesProfile>,
     pub c0: Option<DVec3>,
     /// Line of the `c0` key, for messages.
     pub c0_line: usize,

@@ -4,10 +4,10 @@
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
+use photon::integrators::particle::{Estimator, TransportOptions};
 use photon::output::{self, Flux, SurfaceRow};
 use photon::run::{apply_options, simulate, RunOptions};
 use photon::scene::{load_str, Scene};
-use photon::transport::{Estimator, TransportOptions};
 
 pub const ANALOG: TransportOptions = TransportOptions { estimator: Estimator::Analog, stratified: false, hero: true };
 

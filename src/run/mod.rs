@@ -1,18 +1,20 @@
 //! The driver: fixed-size photon batches traced in parallel, merged in batch-index order, with
 //! stopping on photon count, relative error, time budget or Ctrl-C at batch boundaries.
 
+pub mod converge;
+
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::camera_paths::{ImageKernel, Integrator};
-use crate::emitter::Emitter;
+use crate::detectors::film::{CameraModel, Film};
+use crate::detectors::tally::Tallies;
 use crate::error::Error;
-use crate::film::{CameraModel, Film};
+use crate::integrators::camera::{ImageKernel, Integrator};
+use crate::integrators::particle::{Estimator, Kernel, TransportOptions};
+use crate::lights::Emitter;
 use crate::scene::Scene;
-use crate::tally::Tallies;
-use crate::transport::{Estimator, Kernel, TransportOptions};
 
-pub use crate::batch::BATCH_PHOTONS;
+pub use crate::integrators::batch::BATCH_PHOTONS;
 
 /// Longest the merge waits for a batch before it looks at the clock and for Ctrl-C again.
 const POLL: std::time::Duration = std::time::Duration::from_millis(10);
@@ -41,7 +43,7 @@ pub struct RunOptions {
     /// Skip the camera film entirely.
     pub no_image: bool,
     /// Overrides the scene's `[simulation] integrator`.
-    pub integrator: Option<crate::camera_paths::Integrator>,
+    pub integrator: Option<crate::integrators::camera::Integrator>,
     pub transport: TransportOptions,
 }
 
@@ -242,8 +244,8 @@ pub fn simulate_observed(
     let window = 2 * threads as u64;
     let workers = (threads as u64).min(total_batches.max(1)) as usize;
     let min_batches = match opts.transport.error_model() {
-        crate::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
-        crate::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
+        crate::detectors::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
+        crate::detectors::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
     };
     let mut failure: Option<String> = None;
     let next = AtomicU64::new(0);
@@ -616,7 +618,7 @@ mod tests {
         let mut scene = crate::scene::load_str(std::path::Path::new("furnace.toml"), &toml).unwrap();
         let opts = RunOptions {
             photons: Some(20 * BATCH_PHOTONS),
-            seed: Some(crate::transport::PANIC_TEST_SEED),
+            seed: Some(crate::integrators::particle::PANIC_TEST_SEED),
             threads: Some(2),
             transport: TransportOptions { estimator: Estimator::Analog, ..Default::default() },
             ..Default::default()

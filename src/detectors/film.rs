@@ -368,7 +368,10 @@ impl Film {
             xyz[[p, 0]] = v.x;
             xyz[[p, 1]] = v.y;
             xyz[[p, 2]] = v.z;
-            let c = crate::color::desaturate_into_gamut(crate::color::xyz_to_linear_srgb(v.into()), v.y);
+            let c = crate::spectrum::color::desaturate_into_gamut(
+                crate::spectrum::color::xyz_to_linear_srgb(v.into()),
+                v.y,
+            );
             let (row, col) = (p / self.width, p % self.width);
             rgb[[row, col, 0]] = c.x;
             rgb[[row, col, 1]] = c.y;

@@ -12,10 +12,10 @@ use glam::Vec3A;
 
 use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
 use crate::bsdf::{Bsdf, Mode};
+use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
 use crate::media;
 use crate::sampling::Sampler;
-use crate::tally::Counters;
 
 /// Power heuristic weight of technique a against b.
 #[inline]

@@ -8,15 +8,15 @@ use std::sync::atomic::AtomicBool;
 use glam::Vec3A;
 
 use crate::bsdf::{Bsdf, Mode};
-use crate::emitter::{Birth, EmitSample, Emitter, EMIT_DIMS};
-use crate::film::{CameraModel, FilmBatch};
+use crate::detectors::film::{CameraModel, FilmBatch};
+use crate::detectors::tally::{HistoryScores, Tallies};
 use crate::geometry::{Geometry, RayEnd};
+use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
-use crate::photometry;
 use crate::sampling::Sampler;
 use crate::scene::map::SurfaceMap;
 use crate::scene::{Material, Scene};
-use crate::tally::{HistoryScores, Tallies};
+use crate::spectrum::photometry;
 
 /// How absorption is estimated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
@@ -50,11 +50,11 @@ pub struct TransportOptions {
 
 impl TransportOptions {
     /// Stratified batches correlate their histories: errors must come from the batches' spread.
-    pub fn error_model(&self) -> crate::tally::ErrorModel {
+    pub fn error_model(&self) -> crate::detectors::tally::ErrorModel {
         if self.stratified {
-            crate::tally::ErrorModel::Batches
+            crate::detectors::tally::ErrorModel::Batches
         } else {
-            crate::tally::ErrorModel::Histories
+            crate::detectors::tally::ErrorModel::Histories
         }
     }
 }
@@ -71,7 +71,7 @@ pub struct Kernel<'a> {
     pub scene: &'a Scene,
     pub emitter: &'a Emitter,
     pub camera: Option<&'a CameraModel>,
-    pub image: Option<&'a crate::camera_paths::ImageKernel<'a>>,
+    pub image: Option<&'a crate::integrators::camera::ImageKernel<'a>>,
     pub options: TransportOptions,
     /// Set when the run has stopped: a batch in hand then ends early, and is discarded.
     pub cancel: Option<&'a AtomicBool>,
@@ -238,7 +238,7 @@ impl Kernel<'_> {
         let (range_lo, range_width) = (range.0, range.1 - range.0);
 
         for photon in 0..count as u32 {
-            if crate::batch::cancelled(self.cancel, photon as u64) {
+            if crate::integrators::batch::cancelled(self.cancel, photon as u64) {
                 out.photons = photon as u64;
                 return out;
             }

@@ -28,7 +28,7 @@ struct EmitLight {
     origin: Origin,
     distribution: Distribution,
     /// An IES light's table and C = 0 direction (the nadir is the emission axis).
-    ies: Option<(std::sync::Arc<crate::ies::IesProfile>, Option<Vec3A>)>,
+    ies: Option<(std::sync::Arc<crate::scene::ies::IesProfile>, Option<Vec3A>)>,
     spectrum: Option<SpectralSampler>,
     spectrum_shape: crate::spectrum::Spectrum,
     /// Grey transport's colour weights: ∫S·(x̄,ȳ,z̄)dλ / (∫S dλ · ∫ȳ dλ) for the light's spectrum S.
@@ -88,7 +88,7 @@ pub struct Emitter {
     pub total_power_w: f64,
     /// 1/∫ȳ dλ over the wavelength range.
     y_norm: f64,
-    cmf: &'static crate::color::Cmf,
+    cmf: &'static crate::spectrum::color::Cmf,
 }
 
 impl Emitter {
@@ -112,7 +112,7 @@ impl Emitter {
                         Origin::Point { position: position.as_vec3a(), axis: axis.as_vec3a().normalize() }
                     }
                 };
-                let cie = crate::color::cmf();
+                let cie = crate::spectrum::color::cmf();
                 let xyz = cie.integrate(&l.spectrum, range);
                 let norm = l.spectrum.integral(range) * cie.y_integral(range);
                 let grey_xyz = Vec3A::new((xyz[0] / norm) as f32, (xyz[1] / norm) as f32, (xyz[2] / norm) as f32);
@@ -132,14 +132,14 @@ impl Emitter {
                 }
             })
             .collect();
-        let y_norm = 1.0 / crate::color::cmf().y_integral(range);
+        let y_norm = 1.0 / crate::spectrum::color::cmf().y_integral(range);
         let powers: Vec<f64> = scene.lights.iter().map(|l| l.power_w).collect();
         Emitter {
             pick: Discrete::new(&powers),
             lights,
             total_power_w: powers.iter().sum(),
             y_norm,
-            cmf: crate::color::cmf(),
+            cmf: crate::spectrum::color::cmf(),
         }
     }
 
@@ -298,7 +298,7 @@ impl Emitter {
             (Origin::Point { .. }, Distribution::Isotropic, _) => uniform_sphere(u1, u2),
             (_, Distribution::Ies, Some((profile, c0))) => {
                 let (gamma, c) = profile.sample(u1 as f64, u2 as f64);
-                crate::ies::Frame::new(axis, *c0).direction(gamma, c)
+                crate::scene::ies::Frame::new(axis, *c0).direction(gamma, c)
             }
             (_, d, _) => direction(d, axis, u1, u2),
         }
@@ -325,7 +325,7 @@ impl Emitter {
         match l.distribution {
             Distribution::Isotropic if is_point => 1.0 / (4.0 * PI),
             Distribution::Ies => l.ies.as_ref().map_or(0.0, |(profile, c0)| {
-                let (gamma, c) = crate::ies::Frame::new(axis, *c0).angles(w);
+                let (gamma, c) = crate::scene::ies::Frame::new(axis, *c0).angles(w);
                 profile.pdf(gamma, c) as f32
             }),
             _ if cos <= 0.0 => 0.0,

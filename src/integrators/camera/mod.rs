@@ -23,13 +23,13 @@ mod path;
 use glam::Vec3A;
 
 use crate::bsdf::{Bsdf, Mode, Sample};
-use crate::emitter::Emitter;
-use crate::film::{CameraModel, FilmBatch};
+use crate::detectors::film::{CameraModel, FilmBatch};
+use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd};
+use crate::lights::Emitter;
 use crate::media;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
-use crate::tally::Counters;
 
 pub use crate::scene::Integrator;
 
@@ -257,13 +257,13 @@ impl<'a> ImageKernel<'a> {
         cancel: Option<&std::sync::atomic::AtomicBool>,
     ) -> FilmBatch {
         let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
-        let first = batch * crate::batch::BATCH_PHOTONS;
+        let first = batch * crate::integrators::batch::BATCH_PHOTONS;
         let pixels = self.camera.pixels() as u64;
         let mut film = FilmBatch { first_sample: first, ..FilmBatch::default() };
         film.samples.reserve(count as usize);
         let mut bdpt = bdpt::Scratch::default();
         for i in 0..count {
-            if crate::batch::cancelled(cancel, i) {
+            if crate::integrators::batch::cancelled(cancel, i) {
                 break;
             }
             let pixel = ((first + i) % pixels) as usize;

@@ -2,7 +2,7 @@
 //! luminous efficacy of photopic vision (CIE 015:2018 §3; the SI defines the candela by 683 lm/W
 //! at 540 THz, λ ≈ 555 nm, where the CIE 1931 ȳ = V(λ) is 1). ȳ is the 1931 2° table in `color`.
 
-use crate::color::cmf;
+use crate::spectrum::color::cmf;
 use crate::spectrum::Spectrum;
 
 /// K_m, lm/W.

@@ -1,6 +1,9 @@
 //! Spectra: constant, tabulated (piecewise linear, zero outside the table), blackbody and
 //! Cauchy dispersion; and the tabulated CDF used to sample a wavelength by inverse transform.
 
+pub mod color;
+pub mod photometry;
+
 use std::path::Path;
 
 use crate::error::InputError;

@@ -19,11 +19,11 @@ use glam::Vec3A;
 
 use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
 use crate::bsdf::{Bsdf, Mode};
-use crate::film::FilmBatch;
+use crate::detectors::film::FilmBatch;
+use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
 use crate::media;
 use crate::sampling::Sampler;
-use crate::tally::Counters;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Kind {

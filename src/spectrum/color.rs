@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use crate::spectrum::Spectrum;
 
-const CIE_CSV: &str = include_str!("../spectra/cie1931_2deg_xyz.csv");
+const CIE_CSV: &str = include_str!("../../spectra/cie1931_2deg_xyz.csv");
 
 /// x̄, ȳ, z̄ at 1 nm from `CIE_FIRST_NM` to 830 nm.
 pub struct Cmf {
