@@ -46,7 +46,7 @@ pub fn estimates(scene: &crate::scene::Scene, r: &crate::run::RunResult) -> Vec<
                 surface: s.name.clone(),
                 resolution: m.resolution,
                 size_m: m.size_m,
-                texel_area_m2: m.texel_area_m2.clone(),
+                texel_area_m2: crate::detectors::maps::texel_areas(m),
                 flux_w: range.clone().map(|k| t.estimate(&t.texels, k, r.emitted_w, model)).collect(),
                 flux_lm: range.map(|k| t.estimate(&t.texels_lm, k, r.emitted_w, model)).collect(),
             }
