@@ -10,7 +10,7 @@ use crate::sampling::{
     cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, uniform_triangle, Discrete,
 };
 use crate::scene::{Distribution, LightShape, Scene};
-use crate::spectrum::SpectralSampler;
+use crate::spectrum::{Lanes, SpectralSampler};
 
 enum Origin {
     /// Triangles of the light's surface, chosen by area.
@@ -193,6 +193,35 @@ impl Emitter {
     pub fn colour(&self, lambda_nm: f64) -> Vec3A {
         let c = self.cmf.at(lambda_nm);
         Vec3A::new((c[0] * self.y_norm) as f32, (c[1] * self.y_norm) as f32, (c[2] * self.y_norm) as f32)
+    }
+
+    /// Power per nm share of light `light` at wavelength lanes `lambda`: S(λ)/∫S (spectral) or
+    /// 1 (grey, where a light's power is carried whole).
+    #[inline]
+    pub fn share_lanes<const SPECTRAL: bool, const N: usize>(&self, light: usize, lambda: &[f64; N]) -> Lanes<N> {
+        if SPECTRAL {
+            Lanes(lambda.map(|l| self.spectral_share(light, l)))
+        } else {
+            Lanes::ONE
+        }
+    }
+
+    /// Radiance an area light's surface emits along unit `w` from a triangle with front normal
+    /// `n`, per lane: L = Φ_λ · p(ω)/(A cosθ) (uniform over the area A, direction pdf p); zero behind.
+    #[inline]
+    pub fn radiance<const SPECTRAL: bool, const N: usize>(
+        &self,
+        light: usize,
+        n: Vec3A,
+        w: Vec3A,
+        lambda: &[f64; N],
+    ) -> Lanes<N> {
+        let cos = n.dot(w) as f64;
+        let pdf = self.direction_pdf(light, n, w) as f64;
+        if cos <= 0.0 || pdf <= 0.0 {
+            return Lanes::ZERO;
+        }
+        self.share_lanes::<SPECTRAL, N>(light, lambda) * (self.power_w(light) * pdf * self.position_pdf(light) / cos)
     }
 
     /// Relative spectral power S(λ) of light `light` (the shape its wavelengths are drawn from).

@@ -17,7 +17,7 @@
 
 use glam::Vec3A;
 
-use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
+use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::film::FilmBatch;
 use crate::detectors::tally::Counters;
@@ -174,7 +174,7 @@ impl ImageKernel<'_> {
         let (dir, pdf_dir) = e.sample_direction(light, lp.axis, s.uniform_f32(), s.uniform_f32());
         // β₀ = Φ_λ/pick: power per nm. With the emission factor p(ω)/|cosθ| of `vertex_f`, the
         // direction sampled by p(ω) leaves β unchanged.
-        let beta = light_share::<SPECTRAL>(e, light, wl) * (e.power_w(light) / pick);
+        let beta = e.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda) * (e.power_w(light) / pick);
         let mut y0 = Vertex::endpoint(
             Kind::Light(light),
             lp.point,
@@ -392,7 +392,7 @@ impl ImageKernel<'_> {
                 return None;
             }
             let l = self.surface_light[pt.surface as usize]?;
-            let le = emitted_radiance::<SPECTRAL>(self.emitter, l, pt.n, pt.wo, wl);
+            let le = self.emitter.radiance::<SPECTRAL, LANES>(l, pt.n, pt.wo, &wl.lambda);
             return (!le.is_zero()).then_some((pt.beta * le, l, None));
         }
         let qs = &lv[s - 1];

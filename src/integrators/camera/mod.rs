@@ -100,34 +100,6 @@ impl LaneXyz {
     }
 }
 
-/// Power per nm share of light `light` at the lanes: S(λ)/∫S (spectral) or 1 (grey).
-#[inline]
-fn light_share<const SPECTRAL: bool>(emitter: &Emitter, light: usize, wl: &Wavelengths) -> Lanes {
-    if SPECTRAL {
-        Lanes(wl.lambda.map(|l| emitter.spectral_share(light, l)))
-    } else {
-        Lanes::ONE
-    }
-}
-
-/// Radiance an area light's surface emits along unit `w` from a triangle with front normal `n`:
-/// L = Φ_λ · p(ω)/(A cosθ) (uniform over the area A, direction pdf p); zero behind.
-#[inline]
-fn emitted_radiance<const SPECTRAL: bool>(
-    emitter: &Emitter,
-    light: usize,
-    n: Vec3A,
-    w: Vec3A,
-    wl: &Wavelengths,
-) -> Lanes {
-    let cos = n.dot(w) as f64;
-    let pdf = emitter.direction_pdf(light, n, w) as f64;
-    if cos <= 0.0 || pdf <= 0.0 {
-        return Lanes::ZERO;
-    }
-    light_share::<SPECTRAL>(emitter, light, wl) * (emitter.power_w(light) * pdf * emitter.position_pdf(light) / cos)
-}
-
 /// Russian roulette on the vertex's mean albedo, independent of λ (none at a lossless
 /// boundary), then the BSDF's own sample; `beta` takes its weight over the survival
 /// probability. None ends the path.

@@ -10,7 +10,7 @@
 
 use glam::Vec3A;
 
-use super::{emitted_radiance, light_share, scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths};
+use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
@@ -62,7 +62,7 @@ impl ImageKernel<'_> {
 
             // Emission seen along the ray, MIS-weighted against next-event estimation.
             if let Some(light) = self.surface_light[surface as usize] {
-                let le = emitted_radiance::<SPECTRAL>(self.emitter, light, n, -dir, &wl);
+                let le = self.emitter.radiance::<SPECTRAL, LANES>(light, n, -dir, &wl.lambda);
                 if !le.is_zero() {
                     let weight = match bsdf_pdf {
                         None => 1.0,
@@ -155,7 +155,7 @@ impl ImageKernel<'_> {
         if !self.geo().visible(vertex, lp.end()) {
             return;
         }
-        let radiance_term = light_share::<SPECTRAL>(self.emitter, light, wl)
+        let radiance_term = self.emitter.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda)
             * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
         // A visible light lies in the vertex's own medium: Beer–Lambert over the shadow segment.
         let absorbed = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl));
