@@ -8,12 +8,15 @@
 //! path and `wi` onward; f(wo, wi) and pdf(wo, wi) are per solid angle; `n` is the unit
 //! geometric normal, either side. Adding a model means one file here and one arm per match.
 
+mod conductor;
 mod dielectric;
 mod lambertian;
+pub mod microfacet;
 mod mirror;
 
 use glam::Vec3A;
 
+pub use conductor::fresnel_conductor;
 pub use dielectric::{etas, fresnel_dielectric, refract};
 
 use crate::sampling::Sampler;
@@ -37,6 +40,10 @@ pub enum Lobe {
     SpecularReflection,
     /// Refraction through a dielectric.
     SpecularTransmission,
+    /// Microfacet reflection (a rough metal).
+    GlossyReflection,
+    /// Microfacet refraction (a rough dielectric).
+    GlossyTransmission,
 }
 
 impl Lobe {
@@ -97,6 +104,7 @@ enum Model<const N: usize> {
     Absorber,
     Lambertian(lambertian::Lambertian<N>),
     Mirror(mirror::Mirror<N>),
+    Conductor(conductor::Conductor<N>),
     Dielectric(dielectric::Dielectric),
 }
 
@@ -122,6 +130,12 @@ impl<const N: usize> Bsdf<N> {
             Material::Mirror { reflectance } => {
                 Model::Mirror(mirror::Mirror { reflectance: Lanes::eval::<SPECTRAL>(reflectance, lambda) })
             }
+            Material::Conductor { eta, k, specular_reflectance, roughness } => Model::Conductor(conductor::Conductor {
+                eta: Lanes::eval::<SPECTRAL>(eta, lambda),
+                k: Lanes::eval::<SPECTRAL>(k, lambda),
+                tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
+                ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
+            }),
             Material::Dielectric { ior, outside_ior, .. } => Model::Dielectric(dielectric::Dielectric {
                 ior: ior.eval(lambda[0]),
                 outside_ior: outside_ior.eval(lambda[0]),
@@ -130,26 +144,41 @@ impl<const N: usize> Bsdf<N> {
         Bsdf { model, n }
     }
 
-    /// Probability per lane that a path arriving here is scattered at all (for the particle
-    /// tracer's estimators and the hero weights): ρ + τ, a mirror's ρ, 1 for a smooth dielectric.
+    /// Probability per lane that a path arriving from `wo` is scattered at all, as far as it is
+    /// known before sampling (for the particle tracer's estimators): ρ + τ, a mirror's ρ, a
+    /// smooth metal's F·tint, 1 for a smooth dielectric. Where it is not known in closed form
+    /// (rough models: `samples_exactly` is false) it is 1 and the sample's weight carries the loss.
     #[inline]
-    pub fn albedo(&self) -> Lanes<N> {
+    pub fn albedo(&self, wo: Vec3A) -> Lanes<N> {
         match &self.model {
             Model::Absorber => Lanes::ZERO,
             Model::Lambertian(m) => m.albedo(),
             Model::Mirror(m) => m.reflectance,
+            Model::Conductor(m) => m.albedo(wo, self.n),
             Model::Dielectric(_) => Lanes::ONE,
         }
     }
 
     /// The albedo over the lanes, for a camera path's Russian roulette.
     #[inline]
-    pub fn mean_albedo(&self) -> f64 {
+    pub fn mean_albedo(&self, wo: Vec3A) -> f64 {
         match &self.model {
             Model::Absorber => 0.0,
             Model::Lambertian(m) => m.mean_albedo(),
             Model::Mirror(m) => m.reflectance.mean(),
+            Model::Conductor(m) => m.albedo(wo, self.n).mean(),
             Model::Dielectric(_) => 1.0,
+        }
+    }
+
+    /// Whether `sample` draws directions in exact proportion to f·|cosθ|/albedo, so a particle
+    /// that survived the albedo keeps its weight. Otherwise (microfacet models) the particle
+    /// tracer applies the sample's weight, ≤ 1, as a second absorption.
+    #[inline]
+    pub fn samples_exactly(&self) -> bool {
+        match &self.model {
+            Model::Conductor(m) => m.ggx.is_none(),
+            _ => true,
         }
     }
 
@@ -166,10 +195,14 @@ impl<const N: usize> Bsdf<N> {
     }
 
     /// Whether f has a part other directions can be connected to (light samples, camera splats,
-    /// BDPT connections): false for mirrors, smooth dielectrics and absorbers.
+    /// BDPT connections): false for mirrors, smooth metals and dielectrics, and absorbers.
     #[inline]
     pub fn is_connectible(&self) -> bool {
-        matches!(self.model, Model::Lambertian(_))
+        match &self.model {
+            Model::Lambertian(_) => true,
+            Model::Conductor(m) => m.ggx.is_some(),
+            _ => false,
+        }
     }
 
     /// f(wo, wi); zero for delta lobes. Reflection models are symmetric, so `mode` matters only
@@ -178,6 +211,7 @@ impl<const N: usize> Bsdf<N> {
     pub fn f(&self, wo: Vec3A, wi: Vec3A, _mode: Mode) -> Factored<N> {
         match &self.model {
             Model::Lambertian(m) => m.f(wo, wi, self.n),
+            Model::Conductor(m) => m.f(wo, wi, self.n),
             _ => Factored::ZERO,
         }
     }
@@ -187,6 +221,7 @@ impl<const N: usize> Bsdf<N> {
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f64 {
         match &self.model {
             Model::Lambertian(m) => m.pdf(wo, wi, self.n),
+            Model::Conductor(m) => m.pdf(wo, wi, self.n),
             _ => 0.0,
         }
     }
@@ -199,19 +234,23 @@ impl<const N: usize> Bsdf<N> {
             Model::Absorber => None,
             Model::Lambertian(m) => m.sample(wo, self.n, s),
             Model::Mirror(m) => Some(m.sample(wo, self.n)),
+            Model::Conductor(m) => m.sample(wo, self.n, s),
             Model::Dielectric(m) => Some(m.sample::<N>(wo, self.n, mode, s)),
         }
     }
 
-    /// The throughput per lane of `lobe` from `wo` to `wi` when another lane's model chose it
-    /// (hero wavelengths): what `Sample::factor` would be at these lanes.
+    /// The throughput and the survival probability per lane of a scattering from `wo` into
+    /// `lobe` toward `wi` that another lane's model sampled (hero wavelengths): the factor this
+    /// lane's own sample would carry relative to a direction density the lanes share, and the
+    /// albedo its particle estimator would have used (`Hero::event`).
     #[inline]
-    pub fn lobe_factor(&self, lobe: Lobe, wo: Vec3A, mode: Mode) -> Lanes<N> {
+    pub fn event_terms(&self, lobe: Lobe, wo: Vec3A, wi: Vec3A, mode: Mode) -> (Lanes<N>, Lanes<N>) {
         match &self.model {
-            Model::Absorber => Lanes::ZERO,
-            Model::Lambertian(m) => m.lobe_factor(lobe),
-            Model::Mirror(m) => m.reflectance,
-            Model::Dielectric(m) => m.lobe_factor(lobe, wo, self.n, mode),
+            Model::Absorber => (Lanes::ZERO, Lanes::ZERO),
+            Model::Lambertian(m) => (m.lobe_factor(lobe), m.albedo()),
+            Model::Mirror(m) => (m.reflectance, m.reflectance),
+            Model::Conductor(m) => m.event_terms(wo, wi, self.n),
+            Model::Dielectric(m) => (m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
         }
     }
 }

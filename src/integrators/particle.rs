@@ -346,7 +346,7 @@ impl Kernel<'_> {
                 }
 
                 // Absorb or carry on.
-                let a = bsdf.albedo().0[0];
+                let a = bsdf.albedo(wo).0[0];
                 if EXPECTED && weight >= ROULETTE_WEIGHT {
                     if a < 1.0 {
                         absorb(surface, weight * (1.0 - a), lambda, &mut absorbed, &mut spectra_absorbed);
@@ -360,16 +360,29 @@ impl Kernel<'_> {
                     break;
                 }
                 out.counters.fresnel_evaluations += is_dielectric as u64;
-                // Every model here samples in proportion to f·|cos|/albedo, so a survivor keeps its weight.
                 let Some(sampled) = bsdf.sample(wo, Mode::Importance, &mut s) else {
-                    // Only a zero density (a direction exactly in the plane) gets here.
+                    // A zero density, or a microfacet reflection that left below the surface.
                     absorb(surface, weight, lambda, &mut absorbed, &mut spectra_absorbed);
                     break;
                 };
+                if !bsdf.samples_exactly() {
+                    // The sample's weight t = f|cos|/pdf ≤ 1 is a second absorption: the share 1 − t
+                    // stays here (expected value), or the photon survives with probability t.
+                    let t = sampled.weight().0[0];
+                    if EXPECTED && weight >= ROULETTE_WEIGHT {
+                        absorb(surface, weight * (1.0 - t), lambda, &mut absorbed, &mut spectra_absorbed);
+                        weight *= t;
+                        if weight <= 0.0 {
+                            break;
+                        }
+                    } else if !(s.uniform() < t) {
+                        absorb(surface, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                        break;
+                    }
+                }
                 let new_dir = sampled.wi;
                 if let Some(hb) = &hero_bsdf {
-                    let factor = hb.lobe_factor(sampled.lobe, wo, Mode::Importance);
-                    let albedo = hb.albedo();
+                    let (factor, albedo) = hb.event_terms(sampled.lobe, wo, new_dir, Mode::Importance);
                     hero.event::<EXPECTED>(|k| (factor.0[k], albedo.0[k]));
                 }
                 if scatterings == max_bounces {

@@ -994,6 +994,62 @@ impl<'s> Loader<'s> {
                 t.allow(&["type", "reflectance"])?;
                 Ok(Material::Mirror { reflectance: fraction("reflectance", 1.0)? })
             }
+            "conductor" => {
+                t.allow(&["type", "metal", "eta", "k", "roughness", "specular_reflectance"])?;
+                let named = t.with("metal", |n| {
+                    let name = n.str()?;
+                    let (eta, k, cover) = crate::scene::catalog::metal(name).ok_or_else(|| {
+                        let known: Vec<&str> = crate::scene::catalog::METALS.iter().map(|m| m.0).collect();
+                        n.err(format!("unknown metal \"{name}\"; bundled metals: {}", known.join(", ")))
+                    })?;
+                    if range.0 < cover.0 || range.1 > cover.1 {
+                        return Err(n.err(format!(
+                            "the table of {name} covers {} to {} nm, but the simulation's wavelength_range_nm is \
+                             [{}, {}]: narrow the range or give `eta` and `k`",
+                            cover.0, cover.1, range.0, range.1
+                        )));
+                    }
+                    Ok((eta, k))
+                })?;
+                let (eta, k) = match named {
+                    Some(nk) => {
+                        if let Some(key) = ["eta", "k"].into_iter().find(|key| t.has(key)) {
+                            return Err(t.err_at(key, "give either `metal` or `eta` and `k`, not both"));
+                        }
+                        nk
+                    }
+                    None => {
+                        let eta = t.require("eta", |n| {
+                            let s = self.spectrum(n, SpectrumUse::Ior)?;
+                            let (lo, _) = s.min_max_over(range);
+                            if !(lo > 0.0) {
+                                return Err(n.err(format!("eta must be positive at every wavelength; found {lo}")));
+                            }
+                            Ok(s)
+                        })?;
+                        let k = t.require("k", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
+                        (eta, k)
+                    }
+                };
+                let roughness = t
+                    .with("roughness", |n| {
+                        if !n.is_number() {
+                            return Err(n.err(
+                                "expected a number (the GGX α); anisotropic roughness [αu, αv] needs a surface \
+                                 tangent direction, which photon does not define yet",
+                            ));
+                        }
+                        let a = n.f64()?;
+                        if !(0.0..=1.0).contains(&a) {
+                            return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+                        }
+                        Ok(a)
+                    })?
+                    .unwrap_or(0.0);
+                let roughness = if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness };
+                let specular_reflectance = fraction("specular_reflectance", 1.0)?;
+                Ok(Material::Conductor { eta, k, specular_reflectance, roughness })
+            }
             "dielectric" => {
                 t.allow(&["type", "ior", "outside_ior", "absorption_per_m"])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
@@ -1014,7 +1070,9 @@ impl<'s> Loader<'s> {
             }
             other => Err(t.err_at(
                 "type",
-                format!("unknown material type \"{other}\"; known types: absorber, lambertian, mirror, dielectric"),
+                format!(
+                    "unknown material type \"{other}\"; known types: absorber, lambertian, mirror, conductor, dielectric"
+                ),
             )),
         }
     }
@@ -1287,6 +1345,11 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
             simplify(transmittance, range);
         }
         Material::Mirror { reflectance } => simplify(reflectance, range),
+        Material::Conductor { eta, k, specular_reflectance, .. } => {
+            simplify(eta, range);
+            simplify(k, range);
+            simplify(specular_reflectance, range);
+        }
         Material::Dielectric { ior, outside_ior, absorption_per_m } => {
             simplify(ior, range);
             simplify(outside_ior, range);

@@ -1,6 +1,7 @@
 //! The scene: everything a run needs, in SI units and triangles, checked once at load time.
 //! Nothing here knows about sampling or the BVH's internals; `load` turns TOML into a `Scene`.
 
+pub mod catalog;
 mod doc;
 pub mod farfield;
 pub mod ies;
@@ -29,6 +30,10 @@ pub struct Simulation {
     pub integrator: Integrator,
 }
 
+/// GGX α below which a surface is smooth (a delta lobe): the lobe is then narrower than a
+/// direction's f32 resolution, and microfacet sampling loses its precision.
+pub const SMOOTH_ROUGHNESS: f64 = 1e-4;
+
 #[derive(Clone, Debug)]
 pub enum Material {
     Absorber,
@@ -39,6 +44,14 @@ pub enum Material {
     },
     Mirror {
         reflectance: Spectrum,
+    },
+    /// A metal of complex index `eta` + i`k` (against an outside of index 1), times a factor;
+    /// GGX `roughness` α (0: smooth).
+    Conductor {
+        eta: Spectrum,
+        k: Spectrum,
+        specular_reflectance: Spectrum,
+        roughness: f64,
     },
     /// Smooth boundary between `outside_ior` (front, the normals' side) and `ior` (inside).
     Dielectric {
@@ -54,6 +67,7 @@ impl Material {
             Material::Absorber => "absorber",
             Material::Lambertian { .. } => "lambertian",
             Material::Mirror { .. } => "mirror",
+            Material::Conductor { .. } => "conductor",
             Material::Dielectric { .. } => "dielectric",
         }
     }
@@ -156,6 +170,10 @@ pub struct Effects {
     pub diffuse_reflection: bool,
     pub diffuse_transmission: bool,
     pub specular_reflection: bool,
+    /// A rough (microfacet) reflection: a conductor with roughness > 0.
+    pub glossy_reflection: bool,
+    /// A rough refraction (a rough dielectric).
+    pub glossy_transmission: bool,
     pub refraction: bool,
     pub dispersion: bool,
     pub absorbing_media: bool,
@@ -169,6 +187,8 @@ impl Effects {
             (self.diffuse_reflection, "diffuse_reflection"),
             (self.diffuse_transmission, "diffuse_transmission"),
             (self.specular_reflection, "specular_reflection"),
+            (self.glossy_reflection, "glossy_reflection"),
+            (self.glossy_transmission, "glossy_transmission"),
             (self.refraction, "refraction"),
             (self.dispersion, "dispersion"),
             (self.absorbing_media, "absorbing_media"),
@@ -295,6 +315,16 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
             Material::Mirror { reflectance } => {
                 fx.specular_reflection |= positive(reflectance);
                 fx.spectral |= varies(reflectance);
+            }
+            Material::Conductor { eta, k, specular_reflectance, roughness } => {
+                if positive(specular_reflectance) {
+                    if *roughness > 0.0 {
+                        fx.glossy_reflection = true;
+                    } else {
+                        fx.specular_reflection = true;
+                    }
+                }
+                fx.spectral |= varies(eta) || varies(k) || varies(specular_reflectance);
             }
             Material::Dielectric { ior, outside_ior, absorption_per_m } => {
                 fx.specular_reflection = true;

@@ -302,7 +302,7 @@ impl ImageKernel<'_> {
         match v.kind {
             Kind::Camera => true,
             Kind::Light(l) => !self.emitter.is_collimated(l),
-            Kind::Surface => v.bsdf.is_some_and(|b| b.mean_albedo() > 0.0),
+            Kind::Surface => v.bsdf.is_some_and(|b| b.mean_albedo(v.wo) > 0.0),
         }
     }
 

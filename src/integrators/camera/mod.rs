@@ -105,7 +105,7 @@ impl LaneXyz {
 /// probability. None ends the path.
 #[inline]
 fn scatter(bsdf: &Bsdf, wo: Vec3A, mode: Mode, beta: &mut Lanes, s: &mut Sampler) -> Option<Sample<LANES>> {
-    let survival = if bsdf.absorbs() { bsdf.mean_albedo().min(1.0) } else { 1.0 };
+    let survival = if bsdf.absorbs() { bsdf.mean_albedo(wo).min(1.0) } else { 1.0 };
     if bsdf.absorbs() && !(s.uniform() < survival) {
         return None;
     }
