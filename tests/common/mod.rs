@@ -58,8 +58,14 @@ pub fn temp_dir(name: &str) -> std::path::PathBuf {
 /// The bundled Cornell box with its spectrum and mesh paths made absolute, so the text can be
 /// loaded from anywhere or changed by a test.
 pub fn cornell_toml() -> String {
+    bundled_toml("cornell_box.toml")
+}
+
+/// A bundled scene's TOML with its relative paths made absolute.
+#[allow(dead_code)]
+pub fn bundled_toml(name: &str) -> String {
     let root = env!("CARGO_MANIFEST_DIR");
-    std::fs::read_to_string(format!("{root}/scenes/cornell_box.toml"))
+    std::fs::read_to_string(format!("{root}/scenes/{name}"))
         .unwrap()
         .replace("../spectra/", &format!("{root}/spectra/"))
         .replace("meshes/", &format!("{root}/scenes/meshes/"))
