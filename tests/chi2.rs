@@ -376,3 +376,38 @@ fn the_lossy_harness_rejects_a_neighbouring_roughness() {
     let (_, _, p, _) = chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
     assert!(p < 1e-12, "p = {p}");
 }
+
+fn rough_glass(alpha: f64) -> Material {
+    Material::Dielectric {
+        ior: Spectrum::Constant(1.5),
+        outside_ior: Spectrum::Constant(1.0),
+        absorption_per_m: None,
+        roughness: alpha,
+    }
+}
+
+#[test]
+fn rough_dielectric_reflection_and_transmission_match_their_pdf_from_both_sides() {
+    // From outside (front) and from inside, where beyond ~42° most light is totally reflected.
+    // The normal is tilted off the harness's pole: refraction narrows the transmitted lobe (by
+    // about 1 − 1/η), which at a pole would be finer than the bins' integration grid.
+    let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
+    let n = frame.n;
+    let mut seed = 80;
+    for alpha in [0.2, 0.5] {
+        let bsdf = Bsdf::<1>::new::<false>(&rough_glass(alpha), &[f64::NAN], n);
+        for (deg, side) in [(0.0f64, 1.0f32), (50.0, 1.0), (85.0, 1.0), (20.0, -1.0), (45.0, -1.0), (70.0, -1.0)] {
+            let (st, ct) = deg.to_radians().sin_cos();
+            let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
+            for mode in [Mode::Importance, Mode::Radiance] {
+                seed += 1;
+                assert_matches_lossy(
+                    &format!("rough dielectric α = {alpha}, θ_o = {deg}°, side {side}, {mode:?}"),
+                    seed,
+                    |s| bsdf.sample(wo, mode, s).map(|x| x.wi),
+                    |wi| bsdf.pdf(wo, wi),
+                );
+            }
+        }
+    }
+}

@@ -13,6 +13,7 @@ mod dielectric;
 mod lambertian;
 pub mod microfacet;
 mod mirror;
+mod rough_dielectric;
 
 use glam::Vec3A;
 
@@ -106,6 +107,7 @@ enum Model<const N: usize> {
     Mirror(mirror::Mirror<N>),
     Conductor(conductor::Conductor<N>),
     Dielectric(dielectric::Dielectric),
+    RoughDielectric(rough_dielectric::RoughDielectric),
 }
 
 /// A material at one hit and its wavelength lanes.
@@ -136,10 +138,15 @@ impl<const N: usize> Bsdf<N> {
                 tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
                 ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
             }),
-            Material::Dielectric { ior, outside_ior, .. } => Model::Dielectric(dielectric::Dielectric {
-                ior: ior.eval(lambda[0]),
-                outside_ior: outside_ior.eval(lambda[0]),
-            }),
+            Material::Dielectric { ior, outside_ior, roughness, .. } => {
+                let (ior, outside_ior) = (ior.eval(lambda[0]), outside_ior.eval(lambda[0]));
+                if *roughness > 0.0 {
+                    let ggx = microfacet::Ggx::new(*roughness, *roughness);
+                    Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx })
+                } else {
+                    Model::Dielectric(dielectric::Dielectric { ior, outside_ior })
+                }
+            }
         };
         Bsdf { model, n }
     }
@@ -155,7 +162,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.albedo(),
             Model::Mirror(m) => m.reflectance,
             Model::Conductor(m) => m.albedo(wo, self.n),
-            Model::Dielectric(_) => Lanes::ONE,
+            Model::Dielectric(_) | Model::RoughDielectric(_) => Lanes::ONE,
         }
     }
 
@@ -167,7 +174,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.mean_albedo(),
             Model::Mirror(m) => m.reflectance.mean(),
             Model::Conductor(m) => m.albedo(wo, self.n).mean(),
-            Model::Dielectric(_) => 1.0,
+            Model::Dielectric(_) | Model::RoughDielectric(_) => 1.0,
         }
     }
 
@@ -178,15 +185,17 @@ impl<const N: usize> Bsdf<N> {
     pub fn samples_exactly(&self) -> bool {
         match &self.model {
             Model::Conductor(m) => m.ggx.is_none(),
+            Model::RoughDielectric(_) => false,
             _ => true,
         }
     }
 
-    /// Whether any power is lost here: a smooth dielectric only divides it between reflection and
-    /// refraction, so its paths need no roulette.
+    /// Whether any power is lost here before sampling: a dielectric only divides it between
+    /// reflection and refraction (a rough one's masking loss is in its sample's weight), so its
+    /// paths need no roulette.
     #[inline]
     pub fn absorbs(&self) -> bool {
-        !matches!(self.model, Model::Dielectric(_))
+        !matches!(self.model, Model::Dielectric(_) | Model::RoughDielectric(_))
     }
 
     #[inline]
@@ -201,6 +210,7 @@ impl<const N: usize> Bsdf<N> {
         match &self.model {
             Model::Lambertian(_) => true,
             Model::Conductor(m) => m.ggx.is_some(),
+            Model::RoughDielectric(_) => true,
             _ => false,
         }
     }
@@ -208,10 +218,11 @@ impl<const N: usize> Bsdf<N> {
     /// f(wo, wi); zero for delta lobes. Reflection models are symmetric, so `mode` matters only
     /// for refraction.
     #[inline]
-    pub fn f(&self, wo: Vec3A, wi: Vec3A, _mode: Mode) -> Factored<N> {
+    pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: Mode) -> Factored<N> {
         match &self.model {
             Model::Lambertian(m) => m.f(wo, wi, self.n),
             Model::Conductor(m) => m.f(wo, wi, self.n),
+            Model::RoughDielectric(m) => m.f(wo, wi, self.n, mode),
             _ => Factored::ZERO,
         }
     }
@@ -222,6 +233,7 @@ impl<const N: usize> Bsdf<N> {
         match &self.model {
             Model::Lambertian(m) => m.pdf(wo, wi, self.n),
             Model::Conductor(m) => m.pdf(wo, wi, self.n),
+            Model::RoughDielectric(m) => m.pdf(wo, wi, self.n),
             _ => 0.0,
         }
     }
@@ -236,6 +248,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Mirror(m) => Some(m.sample(wo, self.n)),
             Model::Conductor(m) => m.sample(wo, self.n, s),
             Model::Dielectric(m) => Some(m.sample::<N>(wo, self.n, mode, s)),
+            Model::RoughDielectric(m) => m.sample::<N>(wo, self.n, mode, s),
         }
     }
 
@@ -251,6 +264,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Mirror(m) => (m.reflectance, m.reflectance),
             Model::Conductor(m) => m.event_terms(wo, wi, self.n),
             Model::Dielectric(m) => (m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
+            Model::RoughDielectric(m) => m.event_terms(wo, wi, self.n),
         }
     }
 }

@@ -1031,27 +1031,12 @@ impl<'s> Loader<'s> {
                         (eta, k)
                     }
                 };
-                let roughness = t
-                    .with("roughness", |n| {
-                        if !n.is_number() {
-                            return Err(n.err(
-                                "expected a number (the GGX α); anisotropic roughness [αu, αv] needs a surface \
-                                 tangent direction, which photon does not define yet",
-                            ));
-                        }
-                        let a = n.f64()?;
-                        if !(0.0..=1.0).contains(&a) {
-                            return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
-                        }
-                        Ok(a)
-                    })?
-                    .unwrap_or(0.0);
-                let roughness = if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness };
+                let roughness = self.roughness(t)?;
                 let specular_reflectance = fraction("specular_reflectance", 1.0)?;
                 Ok(Material::Conductor { eta, k, specular_reflectance, roughness })
             }
             "dielectric" => {
-                t.allow(&["type", "ior", "outside_ior", "absorption_per_m"])?;
+                t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness"])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
                     let s = t.with(key, |n| {
                         let s = self.spectrum(n, SpectrumUse::Ior)?;
@@ -1066,7 +1051,8 @@ impl<'s> Loader<'s> {
                 let ior = ior_of("ior", 1.5)?;
                 let outside_ior = ior_of("outside_ior", 1.0)?;
                 let absorption_per_m = t.with("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
-                Ok(Material::Dielectric { ior, outside_ior, absorption_per_m })
+                let roughness = self.roughness(t)?;
+                Ok(Material::Dielectric { ior, outside_ior, absorption_per_m, roughness })
             }
             other => Err(t.err_at(
                 "type",
@@ -1075,6 +1061,26 @@ impl<'s> Loader<'s> {
                 ),
             )),
         }
+    }
+
+    /// `roughness`: the GGX α, 0 (smooth) by default and below `SMOOTH_ROUGHNESS`.
+    fn roughness(&self, t: Table<'s, '_>) -> R<f64> {
+        let roughness = t
+            .with("roughness", |n| {
+                if !n.is_number() {
+                    return Err(n.err(
+                        "expected a number (the GGX α); anisotropic roughness [αu, αv] needs a surface tangent \
+                         direction, which photon does not define yet",
+                    ));
+                }
+                let a = n.f64()?;
+                if !(0.0..=1.0).contains(&a) {
+                    return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+                }
+                Ok(a)
+            })?
+            .unwrap_or(0.0);
+        Ok(if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness })
     }
 
     fn distribution(&self, n: Node<'s, '_>) -> R<(Distribution, Option<IesLight>)> {
@@ -1350,7 +1356,7 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
             simplify(k, range);
             simplify(specular_reflectance, range);
         }
-        Material::Dielectric { ior, outside_ior, absorption_per_m } => {
+        Material::Dielectric { ior, outside_ior, absorption_per_m, .. } => {
             simplify(ior, range);
             simplify(outside_ior, range);
             if let Some(a) = absorption_per_m {

@@ -53,11 +53,13 @@ pub enum Material {
         specular_reflectance: Spectrum,
         roughness: f64,
     },
-    /// Smooth boundary between `outside_ior` (front, the normals' side) and `ior` (inside).
+    /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
+    /// rough (GGX `roughness` α > 0).
     Dielectric {
         ior: Spectrum,
         outside_ior: Spectrum,
         absorption_per_m: Option<Spectrum>,
+        roughness: f64,
     },
 }
 
@@ -170,9 +172,9 @@ pub struct Effects {
     pub diffuse_reflection: bool,
     pub diffuse_transmission: bool,
     pub specular_reflection: bool,
-    /// A rough (microfacet) reflection: a conductor with roughness > 0.
+    /// A rough (microfacet) reflection: a conductor or dielectric with roughness > 0.
     pub glossy_reflection: bool,
-    /// A rough refraction (a rough dielectric).
+    /// A rough refraction (a dielectric with roughness > 0).
     pub glossy_transmission: bool,
     pub refraction: bool,
     pub dispersion: bool,
@@ -326,8 +328,13 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 }
                 fx.spectral |= varies(eta) || varies(k) || varies(specular_reflectance);
             }
-            Material::Dielectric { ior, outside_ior, absorption_per_m } => {
-                fx.specular_reflection = true;
+            Material::Dielectric { ior, outside_ior, absorption_per_m, roughness } => {
+                if *roughness > 0.0 {
+                    fx.glossy_reflection = true;
+                    fx.glossy_transmission = true;
+                } else {
+                    fx.specular_reflection = true;
+                }
                 fx.refraction = true;
                 let dispersive = varies(ior) || varies(outside_ior);
                 fx.dispersion |= dispersive;

@@ -53,6 +53,8 @@ struct Vertex {
     axis: Vec3A,
     /// The absorbing or clear dielectric a surface vertex was reached through (None outside any).
     medium: Option<u32>,
+    /// A surface vertex on a dielectric boundary: the media on its two sides differ.
+    on_dielectric: bool,
 }
 
 impl Vertex {
@@ -76,6 +78,7 @@ impl Vertex {
             bsdf: None,
             axis: n,
             medium: None,
+            on_dielectric: false,
         }
     }
 }
@@ -267,6 +270,7 @@ impl ImageKernel<'_> {
             v.surface = surface;
             v.wo = -dir;
             v.medium = medium;
+            v.on_dielectric = is_dielectric;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
             let bsdf = Bsdf::new::<SPECTRAL>(material, &wl.lambda, n);
             if bsdf.is_connectible() {
@@ -428,9 +432,11 @@ impl ImageKernel<'_> {
                 * self.vertex_f(pt, -w, Mode::Radiance)
                 * pt.beta
                 * (cos_q * cos_p / d2);
-            // A visible segment crosses no dielectric boundary, so it lies in the medium the
-            // camera vertex sits in; Beer–Lambert applies to it as to the sampled segments.
-            if let Some(t) = pt.medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {
+            // A visible segment crosses no dielectric boundary, so it lies in the medium on the
+            // camera vertex's side toward the light vertex (beyond the boundary when the camera
+            // vertex sits on a rough dielectric); Beer–Lambert applies to it as to the sampled segments.
+            let medium = if pt.on_dielectric { media::after_crossing(pt.surface, pt.n, -w) } else { pt.medium };
+            if let Some(t) = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {
                 c *= t;
             }
             if c.is_zero() {

@@ -93,7 +93,10 @@ impl ImageKernel<'_> {
             }
             if bsdf.is_connectible() {
                 let vertex = RayEnd { p, err, n, prim: hit.prim };
-                self.next_event::<SPECTRAL>(&bsdf, vertex, medium, -dir, beta, &wl, &mut acc, s, counters);
+                // Through a rough dielectric the light may lie on the other side, in the other medium.
+                let crossing = is_dielectric.then_some(surface);
+                let media = (medium, crossing);
+                self.next_event::<SPECTRAL>(&bsdf, vertex, media, -dir, beta, &wl, &mut acc, s, counters);
             }
             let Some(sampled) = scatter(&bsdf, -dir, Mode::Radiance, &mut beta, s) else { break };
             bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
@@ -118,7 +121,7 @@ impl ImageKernel<'_> {
         &self,
         bsdf: &Bsdf,
         vertex: RayEnd,
-        medium: Option<u32>,
+        (medium, crossing): (Option<u32>, Option<u32>),
         wo: Vec3A,
         beta: Lanes,
         wl: &Wavelengths,
@@ -157,7 +160,9 @@ impl ImageKernel<'_> {
         }
         let radiance_term = self.emitter.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda)
             * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
-        // A visible light lies in the vertex's own medium: Beer–Lambert over the shadow segment.
+        // A visible light lies in the medium on `wi`'s side: the vertex's own, or beyond the
+        // dielectric boundary it sits on (`crossing`). Beer–Lambert over the shadow segment.
+        let medium = crossing.map_or(medium, |surface| media::after_crossing(surface, n, wi));
         let absorbed = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl));
         acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * absorbed.unwrap_or(Lanes::ONE));
     }
