@@ -79,13 +79,177 @@ struct Entry {
     map_line: usize,
 }
 
+/// The names surfaces and lights have taken: each must be unique, and so must the output file
+/// name it becomes.
+#[derive(Default)]
+struct Names {
+    /// Each name and the key that took it.
+    keys: HashMap<String, String>,
+    /// Output files (maps/<name>.exr, spectrum_<name>.csv) use the name made file-safe.
+    stems: HashMap<String, String>,
+}
+
+impl Names {
+    /// Takes `name` for the entry at `key` (its `name` on `node_line`), or says why it cannot.
+    fn claim(&mut self, file: &Path, name: &str, key: &str, node_line: usize) -> R<()> {
+        let error = |m: String| InputError::new(file, key, Some(node_line), m);
+        if crate::scene::map::file_stem(name).len() > MAX_NAME_BYTES {
+            return Err(error(format!(
+                "a name of {} bytes is too long: names become output file names (maps/<name>.exr, \
+                 spectrum_<name>.csv), so they are at most {MAX_NAME_BYTES}",
+                name.len()
+            )));
+        }
+        if let Some(prev) = self.keys.insert(name.to_string(), key.to_string()) {
+            return Err(error(format!(
+                "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
+            )));
+        }
+        if let Some(prev) = self.stems.insert(crate::scene::map::file_stem(name), name.to_string()) {
+            return Err(error(format!(
+                "names \"{prev}\" and \"{name}\" give the same output file name \"{}\" (characters other \
+                 than letters, digits, '-' and '_' become '_'): rename one",
+                crate::scene::map::file_stem(name)
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// One `[[lights]]` entry, parsed now; its power is resolved after triangulation (radiance
+/// needs the area).
+struct LightSpec {
+    name: String,
+    material: usize,
+    shape: ShapeSpec,
+    power: PowerSpec,
+    spectrum: Spectrum,
+    distribution: Distribution,
+    ies: Option<IesLight>,
+    axis: Option<DVec3>,
+    path: String,
+    line: usize,
+    shape_line: usize,
+    /// The key that set the power (the IES file's lumens: `distribution`) and its line.
+    power_key: (&'static str, usize),
+}
+
+/// A light's power as the scene gives it.
+enum PowerSpec {
+    Watts(f64),
+    Lumens(f64),
+    Radiance(Spectrum),
+}
+
+/// One surface or area light triangulated in metres (f64), before recentring.
+struct Shaped {
+    name: String,
+    material: usize,
+    tris: Vec<[DVec3; 3]>,
+    light: Option<usize>,
+    /// Resolution and frame (m) of its irradiance map, and a mesh's texture coordinates.
+    map: Option<([usize; 2], Option<[DVec3; 3]>)>,
+    uvs: Option<Vec<[glam::DVec2; 3]>>,
+    spectrum_bins: Option<usize>,
+    key: String,
+    line: usize,
+}
+
+/// The surfaces as the tracer takes them: recentred, single-precision triangles, each tagged
+/// with its surface.
+struct Assembled {
+    tris: Vec<[Vec3A; 3]>,
+    tri_surface: Vec<u32>,
+    surfaces: Vec<Surface>,
+    /// Each light's surface and its area (m²); None for a point light.
+    light_surface: Vec<Option<(usize, f64)>>,
+    /// Each surface's key and line, for the checks on the finished geometry.
+    surface_keys: Vec<(String, usize)>,
+}
+
+/// The centre of the box around every triangle and point light (m), and the box's largest
+/// side. Physics does not care where the scene sits, but f32 precision does: moved to this
+/// origin, a scene 100 km out is traced as finely as one at home.
+fn bounding_centre(shaped: &[Shaped], point_positions: &[Option<(DVec3, DVec3)>]) -> (DVec3, f64) {
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for v in shaped.iter().flat_map(|s| s.tris.iter().flatten()).chain(point_positions.iter().flatten().map(|(p, _)| p))
+    {
+        lo = lo.min(*v);
+        hi = hi.max(*v);
+    }
+    ((lo + hi) * 0.5, (hi - lo).max_element())
+}
+
+/// The effects of the materials some surface uses; spectral also when a surface asks for its
+/// spectrum, since each photon must then carry a wavelength.
+fn effects_in_use(materials: &[NamedMaterial], surfaces: &[Surface], range: (f64, f64), camera: bool) -> Effects {
+    let mut used = vec![false; materials.len()];
+    for s in surfaces {
+        used[s.material] = true;
+    }
+    let mut effects = effects_of(materials, &used, range, camera);
+    effects.spectral |= surfaces.iter().any(|s| s.spectrum_bins.is_some());
+    effects
+}
+
 impl<'s> Loader<'s> {
+    /// The whole scene, stage by stage. The order of the stages is the order of the checks, so
+    /// it decides which error a bad file reports first.
     fn scene(&self, root: Table<'s, '_>, path: &Path) -> R<Scene> {
         root.allow(ROOT_KEYS)?;
         let unit_m = self.unit(root)?;
         let simulation = self.simulation(root)?;
         let range = simulation.wavelength_range_nm;
 
+        let (mut materials, material_index) = self.materials(root, range)?;
+        let mut names = Names::default();
+        let entries = self.surface_entries(root, &material_index, &mut names)?;
+        let mut light_specs = self.light_specs(root, &material_index, range, &mut names)?;
+        let camera = root.with("camera", |n| self.camera(n.table()?, unit_m))?;
+
+        // Triangulate in metres (f64): surfaces first, then area lights.
+        let mut warnings = Vec::new();
+        let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut warnings)?;
+        let point_positions = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
+        let (origin_m, span_m) = bounding_centre(&shaped, &point_positions);
+        let Assembled { tris, tri_surface, surfaces, light_surface, surface_keys } =
+            self.single_precision_surfaces(shaped, origin_m, span_m, light_specs.len(), &mut warnings)?;
+        let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
+        let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
+
+        let effects = effects_in_use(&materials, &surfaces, range, camera.is_some());
+        let detectors = self.detectors(root, origin_m)?;
+        // Constant-over-range spectra become constants, so grey transport never evaluates a table.
+        for m in &mut materials {
+            simplify_material(&mut m.material, range);
+        }
+
+        self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
+        self.check_ies_c0_planes(&lights, &tris, &tri_surface)?;
+        let reference = self.reference(root, &surfaces)?;
+        let geometry = Geometry::build(tris, tri_surface).map_err(|m| InputError::new(self.src.file, "", None, m))?;
+        let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
+        self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
+        Ok(Scene {
+            path: path.to_path_buf(),
+            simulation,
+            materials,
+            surfaces,
+            lights,
+            camera,
+            geometry,
+            effects,
+            detectors,
+            warnings,
+            reference,
+            origin_m,
+            unit_m,
+        })
+    }
+
+    /// `[materials]`: the built-in absorber at index 0, then each material in file order, and
+    /// the index of each name.
+    fn materials(&self, root: Table<'s, '_>, range: (f64, f64)) -> R<(Vec<NamedMaterial>, HashMap<String, usize>)> {
         let mut materials = vec![NamedMaterial { name: "absorber".into(), material: Material::Absorber }];
         let mut material_index: HashMap<String, usize> = HashMap::from([("absorber".to_string(), 0)]);
         root.with("materials", |n| {
@@ -102,293 +266,254 @@ impl<'s> Loader<'s> {
             }
             Ok(())
         })?;
+        Ok((materials, material_index))
+    }
 
-        let mut names: HashMap<String, String> = HashMap::new();
-        // Output files (maps/<name>.exr, spectrum_<name>.csv) use the name made file-safe.
-        let mut stems: HashMap<String, String> = HashMap::new();
-        let mut entries: Vec<Entry> = Vec::new();
-        let mut check_name = |name: &str, key: &str, node_line: usize| -> R<()> {
-            let error = |m: String| InputError::new(self.src.file, key, Some(node_line), m);
-            if crate::scene::map::file_stem(name).len() > MAX_NAME_BYTES {
-                return Err(error(format!(
-                    "a name of {} bytes is too long: names become output file names (maps/<name>.exr, \
-                     spectrum_<name>.csv), so they are at most {MAX_NAME_BYTES}",
-                    name.len()
-                )));
-            }
-            if let Some(prev) = names.insert(name.to_string(), key.to_string()) {
-                return Err(error(format!(
-                    "duplicate name \"{name}\": `{prev}` already uses it; surface and light names must be unique"
-                )));
-            }
-            if let Some(prev) = stems.insert(crate::scene::map::file_stem(name), name.to_string()) {
-                return Err(error(format!(
-                    "names \"{prev}\" and \"{name}\" give the same output file name \"{}\" (characters other \
-                     than letters, digits, '-' and '_' become '_'): rename one",
-                    crate::scene::map::file_stem(name)
-                )));
-            }
-            Ok(())
-        };
+    /// `[[surfaces]]`: every entry parsed, then their names taken in order.
+    fn surface_entries(
+        &self,
+        root: Table<'s, '_>,
+        material_index: &HashMap<String, usize>,
+        names: &mut Names,
+    ) -> R<Vec<Entry>> {
+        let entries = root
+            .with("surfaces", |n| n.each(|item| self.surface_entry(item.table()?, material_index)))?
+            .unwrap_or_default();
+        for (i, e) in entries.iter().enumerate() {
+            names.claim(self.src.file, &e.name, &index_path("surfaces", i), e.line)?;
+        }
+        Ok(entries)
+    }
 
-        if let Some(list) = root.with("surfaces", |n| {
-            n.each(|item| {
-                let t = item.table()?;
-                t.allow(&["name", "material", "shape", "map", "spectrum_bins"])?;
-                let spectrum_bins = t.with("spectrum_bins", |n| {
-                    let k = n.u64()?;
-                    if !(1..=MAX_SPECTRUM_BINS).contains(&k) {
-                        return Err(
-                            n.err(format!("spectrum_bins must be between 1 and {MAX_SPECTRUM_BINS}, found {k}"))
-                        );
-                    }
-                    Ok(k as usize)
-                })?;
-                let name = self.name(t)?;
-                let material = self.material_ref(t, &material_index)?;
-                let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
-                let map = t.with("map", |n| {
-                    let m = n.table()?;
-                    m.allow(&["resolution"])?;
-                    let resolution = m.require("resolution", |n| {
-                        let r = n.each(|x| x.u64())?;
-                        if r.len() != 2 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
-                            return Err(n.err(format!("expected [nu, nv], each between 1 and {MAX_MAP_SIDE} texels")));
-                        }
-                        Ok([r[0] as usize, r[1] as usize])
-                    })?;
-                    let frame = crate::scene::map::frame(&shape);
-                    if frame.is_none() && !matches!(shape, ShapeSpec::Mesh { .. }) {
-                        return Err(n.err(
-                            "an irradiance map needs a surface of type \"quad\" or \"disk\", or a mesh with \
-                             texture coordinates",
-                        ));
-                    }
-                    if let Some([_, u, v]) = frame {
-                        // The map's axes are the quad's edges from its first corner: they must span a plane.
-                        if !(u.cross(v).length() > 1e-9 * u.length() * v.length()) {
-                            return Err(n.err(
-                                "the quad's edges from its first corner (to the second and the fourth corner) are \
-                                 parallel, so they span no map: list the corners around the quad",
-                            ));
-                        }
-                    }
-                    Ok((resolution, frame))
-                })?;
-                Ok(Entry {
-                    name,
-                    material,
-                    shape,
-                    map,
-                    spectrum_bins,
-                    line: t.line_of_key("name"),
-                    shape_line: t.line_of_key("shape"),
-                    map_line: t.line_of_key("map"),
-                })
-            })
-        })? {
-            for (i, e) in list.into_iter().enumerate() {
-                check_name(&e.name, &index_path("surfaces", i), e.line)?;
-                entries.push(e);
+    /// One `[[surfaces]]` entry: its keys, material, shape (not yet triangulated) and map.
+    fn surface_entry(&self, t: Table<'s, '_>, material_index: &HashMap<String, usize>) -> R<Entry> {
+        t.allow(&["name", "material", "shape", "map", "spectrum_bins"])?;
+        let spectrum_bins = t.with("spectrum_bins", |n| {
+            let k = n.u64()?;
+            if !(1..=MAX_SPECTRUM_BINS).contains(&k) {
+                return Err(n.err(format!("spectrum_bins must be between 1 and {MAX_SPECTRUM_BINS}, found {k}")));
             }
-        }
-
-        // Lights: parsed now, power resolved after triangulation (radiance needs the area).
-        struct LightSpec {
-            name: String,
-            material: usize,
-            shape: ShapeSpec,
-            power: PowerSpec,
-            spectrum: Spectrum,
-            distribution: Distribution,
-            ies: Option<IesLight>,
-            axis: Option<DVec3>,
-            path: String,
-            line: usize,
-            shape_line: usize,
-            /// The key that set the power (the IES file's lumens: `distribution`) and its line.
-            power_key: (&'static str, usize),
-        }
-        enum PowerSpec {
-            Watts(f64),
-            Lumens(f64),
-            Radiance(Spectrum),
-        }
-        let mut light_specs: Vec<LightSpec> = Vec::new();
-        root.with("lights", |n| {
-            n.each(|item| {
-                let t = item.table()?;
-                t.allow(&[
-                    "name",
-                    "shape",
-                    "power_w",
-                    "power_lm",
-                    "radiance",
-                    "spectrum",
-                    "distribution",
-                    "material",
-                    "direction",
-                ])?;
-                let name = self.name(t)?;
-                let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
-                let material = if t.has("material") { self.material_ref(t, &material_index)? } else { 0 };
-                let is_point = matches!(shape, ShapeSpec::Point { .. });
-                // SPEC: area lights default to lambertian; a point light has no surface to be
-                // Lambertian about, so it defaults to isotropic.
-                let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
-                let (distribution, ies) =
-                    t.with("distribution", |n| self.distribution(n))?.unwrap_or((default_distribution, None));
-                if let (Some(ies), false) = (&ies, is_point) {
-                    if ies.profile.emits_upward() {
-                        return Err(t.err_at(
-                            "distribution",
-                            format!(
-                                "{} sends light above the horizontal (gamma > 90 degrees), which an area light \
-                                 cannot emit from its front side: use a point light",
-                                ies.file.display()
-                            ),
-                        ));
-                    }
-                }
-                let given: Vec<&str> =
-                    ["power_w", "power_lm", "radiance"].into_iter().filter(|k| t.has(k)).collect();
-                let power = match given.as_slice() {
-                    [] if ies.is_some() => PowerSpec::Lumens(ies.as_ref().map_or(0.0, |i| i.profile.total_lm)),
-                    [] => {
-                        return Err(t.err(
-                            "missing `power_w` (radiant flux, W), `power_lm` (luminous flux, lm) or `radiance` \
-                             (W m^-2 sr^-1 nm^-1)",
-                        ))
-                    }
-                    ["power_w"] | ["power_lm"] => {
-                        let key = given[0];
-                        let p = t.req_f64(key)?;
-                        if !(p > 0.0) {
-                            return Err(t.err_at(key, format!("power must be positive, found {p}")));
-                        }
-                        if key == "power_w" {
-                            PowerSpec::Watts(p)
-                        } else {
-                            PowerSpec::Lumens(p)
-                        }
-                    }
-                    ["radiance"] => {
-                        let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
-                        if s.integral(range) <= 0.0 {
-                            return Err(
-                                t.err_at("radiance", "radiance must be positive somewhere in the wavelength range")
-                            );
-                        }
-                        PowerSpec::Radiance(s)
-                    }
-                    _ => return Err(t.err_at(given[1], format!("give only one of {}", given.join(", ")))),
-                };
-                if matches!(power, PowerSpec::Radiance(_)) && ies.is_some() {
-                    return Err(t.err_at(
-                        "radiance",
-                        "an IES light takes `power_w`, `power_lm`, or neither (the file's lumens), not `radiance`",
-                    ));
-                }
-                if matches!(power, PowerSpec::Radiance(_)) && t.has("spectrum") {
-                    return Err(t.err_at(
-                        "spectrum",
-                        "`radiance` is already a spectrum (a number or a spectrum table): drop `spectrum`, or give `power_w`",
-                    ));
-                }
-                let spectrum =
-                    t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
-                if !matches!(power, PowerSpec::Radiance(_)) && spectrum.integral(range) <= 0.0 {
-                    return Err(t.err_at("spectrum", "the spectrum is zero over the whole wavelength range"));
-                }
-                if matches!(power, PowerSpec::Lumens(_)) && photometry::efficacy_of(&spectrum, range) <= 0.0 {
-                    return Err(t.err_at(
-                        if t.has("power_lm") { "power_lm" } else { "spectrum" },
-                        "this light's spectrum has no visible power in the wavelength range, so lumens cannot set it",
-                    ));
-                }
-                let axis = t.with("direction", |n| {
-                    let d = DVec3::from(n.vec3()?);
-                    if d.length() == 0.0 {
-                        return Err(n.err("direction must not be the zero vector"));
-                    }
-                    Ok(d.normalize())
-                })?;
-                if !is_point && axis.is_some() {
-                    return Err(t.err_at(
-                        "direction",
-                        "`direction` is for point lights; an area light emits about its front normal",
-                    ));
-                }
-                if is_point {
-                    if matches!(power, PowerSpec::Radiance(_)) {
-                        return Err(t.err_at(
-                            "radiance",
-                            "a point light has no area, so it needs `power_w` or `power_lm`, not `radiance`",
-                        ));
-                    }
-                    if t.has("material") {
-                        return Err(t.err_at("material", "a point light is not a surface and takes no material"));
-                    }
-                    if distribution != Distribution::Isotropic && axis.is_none() {
-                        return Err(t.err(format!(
-                            "a point light with distribution {} needs `direction = [x, y, z]`",
-                            distribution.describe()
-                        )));
-                    }
-                }
-                if let PowerSpec::Radiance(_) = power {
-                    if distribution == Distribution::Collimated {
-                        return Err(t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w` or `power_lm`"));
-                    }
-                }
-                let power_key = ["power_w", "power_lm", "radiance"]
-                    .into_iter()
-                    .find(|k| t.has(k))
-                    .unwrap_or("distribution");
-                Ok(LightSpec {
-                    power_key: (power_key, t.line_of_key(power_key)),
-                    name,
-                    material,
-                    shape,
-                    power,
-                    spectrum,
-                    distribution,
-                    ies,
-                    axis,
-                    path: t.path.to_string(),
-                    line: t.line_of_key("name"),
-                    shape_line: t.line_of_key("shape"),
-                })
-            })
-            .map(|v| light_specs = v)
+            Ok(k as usize)
         })?;
+        let name = self.name(t)?;
+        let material = self.material_ref(t, material_index)?;
+        let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
+        let map = t.with("map", |n| {
+            let m = n.table()?;
+            m.allow(&["resolution"])?;
+            let resolution = m.require("resolution", |n| {
+                let r = n.each(|x| x.u64())?;
+                if r.len() != 2 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
+                    return Err(n.err(format!("expected [nu, nv], each between 1 and {MAX_MAP_SIDE} texels")));
+                }
+                Ok([r[0] as usize, r[1] as usize])
+            })?;
+            let frame = crate::scene::map::frame(&shape);
+            if frame.is_none() && !matches!(shape, ShapeSpec::Mesh { .. }) {
+                return Err(n.err(
+                    "an irradiance map needs a surface of type \"quad\" or \"disk\", or a mesh with \
+                     texture coordinates",
+                ));
+            }
+            if let Some([_, u, v]) = frame {
+                // The map's axes are the quad's edges from its first corner: they must span a plane.
+                if !(u.cross(v).length() > 1e-9 * u.length() * v.length()) {
+                    return Err(n.err(
+                        "the quad's edges from its first corner (to the second and the fourth corner) are \
+                         parallel, so they span no map: list the corners around the quad",
+                    ));
+                }
+            }
+            Ok((resolution, frame))
+        })?;
+        Ok(Entry {
+            name,
+            material,
+            shape,
+            map,
+            spectrum_bins,
+            line: t.line_of_key("name"),
+            shape_line: t.line_of_key("shape"),
+            map_line: t.line_of_key("map"),
+        })
+    }
+
+    /// `[[lights]]`: every entry parsed, then their names taken after the surfaces'; a scene
+    /// needs at least one light.
+    fn light_specs(
+        &self,
+        root: Table<'s, '_>,
+        material_index: &HashMap<String, usize>,
+        range: (f64, f64),
+        names: &mut Names,
+    ) -> R<Vec<LightSpec>> {
+        let light_specs = root
+            .with("lights", |n| n.each(|item| self.light_spec(item.table()?, material_index, range)))?
+            .unwrap_or_default();
         for spec in &light_specs {
-            check_name(&spec.name, &spec.path, spec.line)?;
+            names.claim(self.src.file, &spec.name, &spec.path, spec.line)?;
         }
         if light_specs.is_empty() {
             return Err(self.src.error("lights", None, "the scene has no light: add a [[lights]] entry"));
         }
+        Ok(light_specs)
+    }
 
-        let camera = root.with("camera", |n| self.camera(n.table()?, unit_m))?;
-
-        // Triangulate in metres (f64): surfaces first, then area lights.
-        let mut warnings = Vec::new();
-        struct Shaped {
-            name: String,
-            material: usize,
-            tris: Vec<[DVec3; 3]>,
-            light: Option<usize>,
-            /// Resolution and frame (m) of its irradiance map, and a mesh's texture coordinates.
-            map: Option<([usize; 2], Option<[DVec3; 3]>)>,
-            uvs: Option<Vec<[glam::DVec2; 3]>>,
-            spectrum_bins: Option<usize>,
-            key: String,
-            line: usize,
+    /// One `[[lights]]` entry: its shape, distribution, power, spectrum and direction, checked
+    /// against each other.
+    fn light_spec(&self, t: Table<'s, '_>, material_index: &HashMap<String, usize>, range: (f64, f64)) -> R<LightSpec> {
+        t.allow(&[
+            "name",
+            "shape",
+            "power_w",
+            "power_lm",
+            "radiance",
+            "spectrum",
+            "distribution",
+            "material",
+            "direction",
+        ])?;
+        let name = self.name(t)?;
+        let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
+        let material = if t.has("material") { self.material_ref(t, material_index)? } else { 0 };
+        let is_point = matches!(shape, ShapeSpec::Point { .. });
+        // SPEC: area lights default to lambertian; a point light has no surface to be
+        // Lambertian about, so it defaults to isotropic.
+        let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
+        let (distribution, ies) =
+            t.with("distribution", |n| self.distribution(n))?.unwrap_or((default_distribution, None));
+        if let (Some(ies), false) = (&ies, is_point) {
+            if ies.profile.emits_upward() {
+                return Err(t.err_at(
+                    "distribution",
+                    format!(
+                        "{} sends light above the horizontal (gamma > 90 degrees), which an area light \
+                         cannot emit from its front side: use a point light",
+                        ies.file.display()
+                    ),
+                ));
+            }
         }
+        let power = self.light_power(t, ies.as_ref(), range)?;
+        if matches!(power, PowerSpec::Radiance(_)) && ies.is_some() {
+            return Err(t.err_at(
+                "radiance",
+                "an IES light takes `power_w`, `power_lm`, or neither (the file's lumens), not `radiance`",
+            ));
+        }
+        if matches!(power, PowerSpec::Radiance(_)) && t.has("spectrum") {
+            return Err(t.err_at(
+                "spectrum",
+                "`radiance` is already a spectrum (a number or a spectrum table): drop `spectrum`, or give `power_w`",
+            ));
+        }
+        let spectrum =
+            t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
+        if !matches!(power, PowerSpec::Radiance(_)) && spectrum.integral(range) <= 0.0 {
+            return Err(t.err_at("spectrum", "the spectrum is zero over the whole wavelength range"));
+        }
+        if matches!(power, PowerSpec::Lumens(_)) && photometry::efficacy_of(&spectrum, range) <= 0.0 {
+            return Err(t.err_at(
+                if t.has("power_lm") { "power_lm" } else { "spectrum" },
+                "this light's spectrum has no visible power in the wavelength range, so lumens cannot set it",
+            ));
+        }
+        let axis = t.with("direction", |n| {
+            let d = DVec3::from(n.vec3()?);
+            if d.length() == 0.0 {
+                return Err(n.err("direction must not be the zero vector"));
+            }
+            Ok(d.normalize())
+        })?;
+        if !is_point && axis.is_some() {
+            return Err(
+                t.err_at("direction", "`direction` is for point lights; an area light emits about its front normal")
+            );
+        }
+        if is_point {
+            if matches!(power, PowerSpec::Radiance(_)) {
+                return Err(t.err_at(
+                    "radiance",
+                    "a point light has no area, so it needs `power_w` or `power_lm`, not `radiance`",
+                ));
+            }
+            if t.has("material") {
+                return Err(t.err_at("material", "a point light is not a surface and takes no material"));
+            }
+            if distribution != Distribution::Isotropic && axis.is_none() {
+                return Err(t.err(format!(
+                    "a point light with distribution {} needs `direction = [x, y, z]`",
+                    distribution.describe()
+                )));
+            }
+        }
+        if let PowerSpec::Radiance(_) = power {
+            if distribution == Distribution::Collimated {
+                return Err(
+                    t.err_at("radiance", "a collimated beam has no finite radiance: give `power_w` or `power_lm`")
+                );
+            }
+        }
+        let power_key = ["power_w", "power_lm", "radiance"].into_iter().find(|k| t.has(k)).unwrap_or("distribution");
+        Ok(LightSpec {
+            power_key: (power_key, t.line_of_key(power_key)),
+            name,
+            material,
+            shape,
+            power,
+            spectrum,
+            distribution,
+            ies,
+            axis,
+            path: t.path.to_string(),
+            line: t.line_of_key("name"),
+            shape_line: t.line_of_key("shape"),
+        })
+    }
+
+    /// A light's power as given: exactly one of `power_w`, `power_lm` and `radiance`, or none
+    /// for an IES light (the file's lumens).
+    fn light_power(&self, t: Table<'s, '_>, ies: Option<&IesLight>, range: (f64, f64)) -> R<PowerSpec> {
+        let given: Vec<&str> = ["power_w", "power_lm", "radiance"].into_iter().filter(|k| t.has(k)).collect();
+        let power = match given.as_slice() {
+            [] if ies.is_some() => PowerSpec::Lumens(ies.map_or(0.0, |i| i.profile.total_lm)),
+            [] => {
+                return Err(t.err(
+                    "missing `power_w` (radiant flux, W), `power_lm` (luminous flux, lm) or `radiance` \
+                     (W m^-2 sr^-1 nm^-1)",
+                ))
+            }
+            ["power_w"] | ["power_lm"] => {
+                let key = given[0];
+                let p = t.req_f64(key)?;
+                if !(p > 0.0) {
+                    return Err(t.err_at(key, format!("power must be positive, found {p}")));
+                }
+                if key == "power_w" {
+                    PowerSpec::Watts(p)
+                } else {
+                    PowerSpec::Lumens(p)
+                }
+            }
+            ["radiance"] => {
+                let s = t.require("radiance", |n| self.spectrum(n, SpectrumUse::Emission))?;
+                if s.integral(range) <= 0.0 {
+                    return Err(t.err_at("radiance", "radiance must be positive somewhere in the wavelength range"));
+                }
+                PowerSpec::Radiance(s)
+            }
+            _ => return Err(t.err_at(given[1], format!("give only one of {}", given.join(", ")))),
+        };
+        Ok(power)
+    }
+
+    /// Each surface's shape as triangles in metres (f64); a map over a mesh needs texture
+    /// coordinates that enclose area on every face.
+    fn triangulate_surfaces(&self, entries: &[Entry], unit_m: f64, warnings: &mut Vec<String>) -> R<Vec<Shaped>> {
         let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
-            let (t, uvs) = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, &mut warnings)?;
+            let (t, uvs) = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, warnings)?;
             let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
             if let (Some((_, None)), None) = (&e.map, &uvs) {
                 return Err(InputError::new(
@@ -430,6 +555,18 @@ impl<'s> Loader<'s> {
                 line: e.shape_line,
             });
         }
+        Ok(shaped)
+    }
+
+    /// Each light in metres: an area light's triangles join `shaped`, a point light gives its
+    /// position and axis (None for an area light). An IES light's c0 turns with its light.
+    fn place_lights(
+        &self,
+        light_specs: &mut [LightSpec],
+        unit_m: f64,
+        shaped: &mut Vec<Shaped>,
+        warnings: &mut Vec<String>,
+    ) -> R<Vec<Option<(DVec3, DVec3)>>> {
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
         for (i, spec) in light_specs.iter_mut().enumerate() {
             let key = child_path(&spec.path, "shape");
@@ -454,7 +591,7 @@ impl<'s> Loader<'s> {
                     point_positions.push(Some((p, axis)));
                 }
                 other => {
-                    let (t, _) = shapes::triangulate(other, self.src, &key, spec.shape_line, &mut warnings)?;
+                    let (t, _) = shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
                     shaped.push(Shaped {
@@ -472,30 +609,29 @@ impl<'s> Loader<'s> {
                 }
             }
         }
+        Ok(point_positions)
+    }
 
-        // Physics does not care where the scene sits, but f32 precision does: move the scene's
-        // bounding box to the origin, so a scene 100 km out is traced as finely as one at home.
-        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-        for v in
-            shaped.iter().flat_map(|s| s.tris.iter().flatten()).chain(point_positions.iter().flatten().map(|(p, _)| p))
-        {
-            lo = lo.min(*v);
-            hi = hi.max(*v);
-        }
-        let origin_m = (lo + hi) * 0.5;
-
+    /// Each shape moved to the recentred origin and into single precision (triangles too thin
+    /// for an f32 normal dropped), with its area, irradiance map and spectrum bins.
+    fn single_precision_surfaces(
+        &self,
+        shaped: Vec<Shaped>,
+        origin_m: DVec3,
+        span_m: f64,
+        light_count: usize,
+        warnings: &mut Vec<String>,
+    ) -> R<Assembled> {
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
-        let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_specs.len()];
+        let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_count];
         let (mut texels, mut spectrum_bins) = (0, 0);
-        // Each surface's key and line, for the checks on the finished geometry.
         let mut surface_keys: Vec<(String, usize)> = Vec::new();
         for sh in shaped {
             surface_keys.push((sh.key.clone(), sh.line));
             let local: Vec<[DVec3; 3]> = sh.tris.iter().map(|t| t.map(|v| v - origin_m)).collect();
-            let (kept, kept_index) =
-                self.single_precision(local, &sh.key, sh.line, (hi - lo).max_element(), &mut warnings)?;
+            let (kept, kept_index) = self.single_precision(local, &sh.key, sh.line, span_m, warnings)?;
             let id = surfaces.len();
             let area: f64 = kept.iter().map(|m| 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length()).sum();
             for m in &kept {
@@ -532,7 +668,20 @@ impl<'s> Loader<'s> {
                 light_surface[l] = Some((id, area));
             }
         }
+        Ok(Assembled { tris, tri_surface, surfaces, light_surface, surface_keys })
+    }
 
+    /// Each light at the recentred origin with its power in watts (from watts, lumens, or
+    /// radiance over its area), each one and all together within `MAX_POWER_W`; and the line of
+    /// each light's shape, for later messages.
+    fn lights(
+        &self,
+        light_specs: Vec<LightSpec>,
+        point_positions: &[Option<(DVec3, DVec3)>],
+        light_surface: &[Option<(usize, f64)>],
+        origin_m: DVec3,
+        range: (f64, f64),
+    ) -> R<(Vec<Light>, Vec<usize>)> {
         let mut lights = Vec::with_capacity(light_specs.len());
         let mut total_power_w = 0.0;
         let mut light_lines = Vec::with_capacity(light_specs.len());
@@ -590,25 +739,22 @@ impl<'s> Loader<'s> {
                 ies: spec.ies,
             });
         }
-        let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
+        Ok((lights, light_lines))
+    }
 
-        let mut used = vec![false; materials.len()];
-        for s in &surfaces {
-            used[s.material] = true;
-        }
-        let mut effects = effects_of(&materials, &used, range, camera.is_some());
-        // A spectrum asked of a surface needs each photon to carry a wavelength.
-        effects.spectral |= surfaces.iter().any(|s| s.spectrum_bins.is_some());
-        let detectors = self.detectors(root, origin_m)?;
-        // Constant-over-range spectra become constants, so grey transport never evaluates a table.
-        for m in &mut materials {
-            simplify_material(&mut m.material, range);
-        }
-        // A point light on a surface would shoot half its rays from inside the surface's rounding
-        // band, where no hit can be resolved: they would leak through. Refuse it.
-        for (i, (l, spec_line)) in lights.iter().zip(&light_lines).enumerate() {
+    /// A point light on a surface would shoot half its rays from inside the surface's rounding
+    /// band, where no hit can be resolved: they would leak through. Refuse it.
+    fn check_point_lights_off_surfaces(
+        &self,
+        lights: &[Light],
+        light_lines: &[usize],
+        tris: &[[Vec3A; 3]],
+        tri_surface: &[u32],
+        surfaces: &[Surface],
+    ) -> R<()> {
+        for (i, (l, spec_line)) in lights.iter().zip(light_lines).enumerate() {
             if let LightShape::Point { position, .. } = l.shape {
-                for (t, &s) in tris.iter().zip(&tri_surface) {
+                for (t, &s) in tris.iter().zip(tri_surface) {
                     let tri = t.map(|v| v.as_dvec3());
                     let scale = tri.iter().chain([&position]).map(|v| v.abs().max_element()).fold(0.0, f64::max);
                     let d = point_triangle_distance(position, &tri);
@@ -626,8 +772,12 @@ impl<'s> Loader<'s> {
                 }
             }
         }
-        // An IES table's C = 0 plane is c0 projected off the light's axis: parallel, it has no
-        // projection. Checked against a point light's direction and each of an area light's normals.
+        Ok(())
+    }
+
+    /// An IES table's C = 0 plane is c0 projected off the light's axis: parallel, it has no
+    /// projection. Checked against a point light's direction and each of an area light's normals.
+    fn check_ies_c0_planes(&self, lights: &[Light], tris: &[[Vec3A; 3]], tri_surface: &[u32]) -> R<()> {
         for (i, l) in lights.iter().enumerate() {
             let Some(c0) = l.ies.as_ref().and_then(|ies| ies.c0.map(|c| (c, ies.c0_line))) else { continue };
             let (c0, c0_line) = c0;
@@ -635,7 +785,7 @@ impl<'s> Loader<'s> {
                 LightShape::Point { axis, .. } => vec![axis],
                 LightShape::Area { surface } => tris
                     .iter()
-                    .zip(&tri_surface)
+                    .zip(tri_surface)
                     .filter(|(_, &s)| s as usize == surface)
                     .map(|(t, _)| {
                         let [a, b, c] = t.map(|v| v.as_dvec3());
@@ -663,8 +813,13 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        // An optional known answer, for `photon converge` to measure the observed error against.
-        let reference = root.with("reference", |n| {
+        Ok(())
+    }
+
+    /// `[reference]`: an optional known answer, for `photon converge` to measure the observed
+    /// error against.
+    fn reference(&self, root: Table<'s, '_>, surfaces: &[Surface]) -> R<Option<Reference>> {
+        root.with("reference", |n| {
             let t = n.table()?;
             t.allow(&["surface", "incident_w", "note"])?;
             let name = t.req_str("surface")?;
@@ -678,24 +833,6 @@ impl<'s> Loader<'s> {
             }
             let note = t.str("note")?.unwrap_or_default();
             Ok(Reference { surface, incident_w, note })
-        })?;
-        let geometry = Geometry::build(tris, tri_surface).map_err(|m| InputError::new(self.src.file, "", None, m))?;
-        let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
-        self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
-        Ok(Scene {
-            path: path.to_path_buf(),
-            simulation,
-            materials,
-            surfaces,
-            lights,
-            camera,
-            geometry,
-            effects,
-            detectors,
-            warnings,
-            reference,
-            origin_m,
-            unit_m,
         })
     }
 
