@@ -1,23 +1,26 @@
 #!/usr/bin/env bash
-# Speed of two commits side by side in one run: builds `photon` at each (in temporary worktrees),
-# then times the same runs with both binaries in interleaved rounds, so a shared machine's drift
-# hits both alike. Reports each configuration's median photons/s per build and the median over
-# rounds of the per-round ratio B/A (above 1: B is faster).
-# Usage: bash bench/compare_builds.sh <commit A> <commit B> [rounds, default 7]
+# Speed of several commits side by side in one run: builds `photon` at each (in temporary
+# worktrees), then times the same runs with every binary in interleaved rounds (the order
+# rotating each round), so a shared machine's drift hits them all alike. Reports each
+# configuration's median photons/s per build and, for each later build, the median over rounds
+# of the per-round ratio to the first (above 1: faster than the first).
+# Usage: ROUNDS=7 bash bench/compare_builds.sh <commit> <commit> [<commit> ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-a=$1; b=$2; rounds=${3:-7}
+rounds=${ROUNDS:-7}
 work=$(mktemp -d)
-trap 'git worktree remove --force "$work/a" 2>/dev/null || true; git worktree remove --force "$work/b" 2>/dev/null || true; rm -rf "$work"' EXIT
-for side in a b; do
-  rev=${!side}
-  git worktree add --quiet --detach "$work/$side" "$rev"
-  CARGO_TARGET_DIR="$work/target-$side" cargo build --release --quiet --manifest-path "$work/$side/Cargo.toml"
-  cp "$work/target-$side/release/photon" "$work/photon-$side"
+trap 'for k in $(seq 0 $(($# - 1))); do git worktree remove --force "$work/src$k" 2>/dev/null || true; done; rm -rf "$work"' EXIT
+k=0
+for rev in "$@"; do
+  git worktree add --quiet --detach "$work/src$k" "$rev"
+  CARGO_TARGET_DIR="$work/target" cargo build --release --quiet --manifest-path "$work/src$k/Cargo.toml"
+  cp "$work/target/release/photon" "$work/photon-$k"
+  k=$((k + 1))
 done
-python3 - "$work" "$rounds" "$a" "$b" <<'PY'
+python3 - "$work" "$rounds" "$@" <<'PY'
 import json, subprocess, sys, statistics
-work, rounds, name_a, name_b = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
+work, rounds, names = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
+builds = list(range(len(names)))
 # scene, photons, flags: the estimator is fixed so no pilot runs (its time is not the loop's).
 configs = [
     ("scenes/cornell_box.toml", 524_288, ["--no-image", "--estimator", "expected"], "cornell, no image"),
@@ -27,23 +30,28 @@ configs = [
     ("scenes/furnace.toml", 131_072, ["--estimator", "analog"], "furnace 0.9, analog"),
     ("scenes/glass.toml", 262_144, ["--estimator", "expected"], "glass, light-traced image"),
 ]
-rate = {(c[3], s): [] for c in configs for s in "ab"}
-ratio = {c[3]: [] for c in configs}
+rate = {(c[3], b): [] for c in configs for b in builds}
+ratio = {(c[3], b): [] for c in configs for b in builds[1:]}
 for r in range(rounds):
     for scene, photons, flags, label in configs:
         got = {}
-        for side in ("ab" if r % 2 == 0 else "ba"):
-            out = f"{work}/out-{side}"
-            subprocess.run([f"{work}/photon-{side}", "run", scene, "--photons", str(photons), "--seed", "1",
+        for b in builds[r % len(builds):] + builds[:r % len(builds)]:
+            out = f"{work}/out-{b}"
+            subprocess.run([f"{work}/photon-{b}", "run", scene, "--photons", str(photons), "--seed", "1",
                             "--threads", "2", "--out", out, "--quiet", *flags], check=True)
             run = json.load(open(f"{out}/run.json"))
-            got[side] = photons / run["counters"]["trace_seconds"] * run["threads"]
-            rate[(label, side)].append(got[side])
-        ratio[label].append(got["b"] / got["a"])
-print(f"| configuration | {name_a} photons/s | {name_b} photons/s | ratio B/A (median of {rounds} rounds) | spread |")
-print("|---|---:|---:|---:|---:|")
+            got[b] = photons / run["counters"]["trace_seconds"] * run["threads"]
+            rate[(label, b)].append(got[b])
+        for b in builds[1:]:
+            ratio[(label, b)].append(got[b] / got[0])
+head = " | ".join(f"{n} photons/s" for n in names)
+ratios = " | ".join(f"{n} / {names[0]} (median, range)" for n in names[1:])
+print(f"| configuration | {head} | {ratios} |")
+print("|---|" + "---:|" * (len(names) + len(names) - 1))
 for *_, label in configs:
-    ra = statistics.median(rate[(label, 'a')]); rb = statistics.median(rate[(label, 'b')])
-    rs = sorted(ratio[label])
-    print(f"| {label} | {ra:,.0f} | {rb:,.0f} | {statistics.median(rs):.3f} | {rs[0]:.3f}–{rs[-1]:.3f} |")
+    cells = [f"{statistics.median(rate[(label, b)]):,.0f}" for b in builds]
+    for b in builds[1:]:
+        rs = sorted(ratio[(label, b)])
+        cells.append(f"{statistics.median(rs):.3f} ({rs[0]:.3f}–{rs[-1]:.3f})")
+    print(f"| {label} | " + " | ".join(cells) + " |")
 PY

@@ -6,6 +6,7 @@ use std::process::Command;
 fn info_lists_the_effects_each_bundled_scene_calls_for() {
     let table = [
         ("cornell_box", "spectral", "spectral, diffuse_reflection, camera"),
+        ("cornell_metals", "spectral", "spectral, diffuse_reflection, glossy_reflection, camera"),
         ("furnace", "grey", "diffuse_reflection"),
         ("parallel_plates", "grey", ""),
         ("office", "grey", "diffuse_reflection"),
