@@ -249,7 +249,7 @@ fn unknown_material_type() {
         &[],
         &[
             &at(line_of(&toml, "lambertain"), "materials.white.type"),
-            "unknown material type \"lambertain\"; known types: absorber, lambertian, mirror, conductor, dielectric",
+            "unknown material type \"lambertain\"; known types: absorber, lambertian, mirror, conductor, plastic, dielectric",
         ],
     );
 }

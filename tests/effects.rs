@@ -7,6 +7,12 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
     let table = [
         ("cornell_box", "spectral", "spectral, diffuse_reflection, camera"),
         ("cornell_metals", "spectral", "spectral, diffuse_reflection, glossy_reflection, camera"),
+        (
+            "cornell_glossy",
+            "spectral",
+            "spectral, diffuse_reflection, specular_reflection, glossy_reflection, glossy_transmission, refraction, \
+             camera",
+        ),
         ("furnace", "grey", "diffuse_reflection"),
         ("parallel_plates", "grey", ""),
         ("office", "grey", "diffuse_reflection"),

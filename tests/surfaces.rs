@@ -13,7 +13,7 @@ mod common;
 use common::{assert_z, run, run_with, surface, ANALOG};
 
 use glam::Vec3A;
-use photon::bsdf::{fresnel_conductor, Bsdf, Mode};
+use photon::bsdf::{fresnel_conductor, Bsdf, Mode, Prepared};
 use photon::sampling::Sampler;
 use photon::scene::Material;
 use photon::spectrum::Spectrum;
@@ -29,7 +29,7 @@ fn conductor(n: f64, k: f64, alpha: f64) -> Material {
 }
 
 fn grey(m: &Material) -> Bsdf<1> {
-    Bsdf::<1>::new::<false>(m, &[f64::NAN], Vec3A::Z)
+    Bsdf::<1>::new::<false>(m, &Prepared::of(m, (400.0, 700.0)), &[f64::NAN], Vec3A::Z)
 }
 
 fn at(theta_deg: f64, phi_deg: f64) -> Vec3A {
@@ -179,7 +179,7 @@ fn bundled_aluminium_reflects_its_closed_form_at_normal_incidence() {
     let Material::Conductor { eta, k, .. } = m else { panic!("{m:?}") };
     let (n, k) = (eta.eval(550.0), k.eval(550.0));
     let closed = ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
-    let r = Bsdf::<1>::new::<true>(m, &[550.0], Vec3A::Z).albedo(Vec3A::Z).0[0];
+    let r = Bsdf::<1>::new::<true>(m, &Prepared::of(m, (400.0, 700.0)), &[550.0], Vec3A::Z).albedo(Vec3A::Z).0[0];
     assert!((r - closed).abs() < 1e-12, "{r} vs {closed}");
     assert!((r - 0.92).abs() < 0.01, "Al at 550 nm: R = {r}");
 }
@@ -333,5 +333,50 @@ fn rough_dielectric_white_furnace_reflection_and_refraction_lose_only_what_the_b
             assert!(max <= 1.0 + 1e-6, "a sample weight {max} > 1");
             assert!(fine <= 1.0 + 1e-4, "E = {fine} > 1");
         }
+    }
+}
+
+fn plastic(rho: f64, eta: f64) -> Material {
+    Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta }
+}
+
+#[test]
+fn plastic_conserves_energy_at_every_angle_and_a_white_one_returns_everything() {
+    // Closed form: albedo = F(θ_o) + (1 − F(θ_o)) A(ρ), A(1) = 1. Checked three ways: the closed
+    // form itself, the quadrature of its diffuse f plus the coat's F, and the mean sample weight.
+    let mut seed = 300;
+    for (rho, eta) in [(1.0, 1.5), (0.5, 1.5), (1.0, 2.0), (0.8, 1.33)] {
+        let b = grey(&plastic(rho, eta));
+        for deg in [0.0, 30.0, 60.0, 80.0, 89.0] {
+            let wo = at(deg, 10.0);
+            let closed = b.closed_form_albedo(wo).unwrap().0[0];
+            let f_o = photon::bsdf::fresnel_dielectric(wo.z as f64, 1.0, eta).0;
+            let quad = f_o + lobe_integral(&b, wo, Vec3A::Z, Mode::Importance, 2000, 256, |wi| wi.z > 0.0);
+            assert!((quad - closed).abs() < 1e-5, "ρ = {rho}, η = {eta}, θ = {deg}°: {quad} vs {closed}");
+            assert!(closed <= 1.0 + 1e-9, "ρ = {rho}, η = {eta}, θ = {deg}°: albedo {closed} > 1");
+            if rho == 1.0 {
+                assert!((closed - 1.0).abs() < 1e-6, "a white plastic returns {closed} at {deg}°");
+            }
+            seed += 1;
+            let (mc, se, max) = sampled_albedo(&b, wo, 100_000, seed);
+            assert!(max <= 1.0 + 1e-9, "a sample weight {max} > 1");
+            if se > 0.0 {
+                assert_z(&format!("plastic ρ = {rho}, η = {eta}, θ = {deg}°"), mc, closed, se, 4.0);
+            } else {
+                assert!((mc - closed).abs() < 1e-9, "{mc} vs {closed}");
+            }
+        }
+    }
+}
+
+#[test]
+fn plastic_is_reciprocal() {
+    let b = grey(&plastic(0.6, 1.5));
+    let mut s = Sampler::for_batch(10, 0);
+    for _ in 0..2000 {
+        let wo = photon::sampling::uniform_hemisphere(Vec3A::Z, s.uniform_f32(), s.uniform_f32());
+        let wi = photon::sampling::uniform_hemisphere(Vec3A::Z, s.uniform_f32(), s.uniform_f32());
+        let (a, c) = (b.f(wo, wi, Mode::Importance).value().0[0], b.f(wi, wo, Mode::Radiance).value().0[0]);
+        assert!((a - c).abs() <= 1e-12 * a.max(c), "{a} vs {c}");
     }
 }

@@ -13,6 +13,7 @@ mod dielectric;
 mod lambertian;
 pub mod microfacet;
 mod mirror;
+mod plastic;
 mod rough_dielectric;
 
 use glam::Vec3A;
@@ -108,6 +109,26 @@ enum Model<const N: usize> {
     Conductor(conductor::Conductor<N>),
     Dielectric(dielectric::Dielectric),
     RoughDielectric(rough_dielectric::RoughDielectric),
+    Plastic(plastic::Plastic<N>),
+}
+
+/// What a model needs worked out once per run rather than at every hit: a plastic's coat
+/// averages. Built per material by `Prepared::of`; the default serves every other model.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Prepared {
+    coat: Option<plastic::Coat>,
+}
+
+impl Prepared {
+    /// For `material` over the simulated wavelength range `range` (nm).
+    pub fn of(material: &Material, range: (f64, f64)) -> Self {
+        match material {
+            Material::Plastic { diffuse_reflectance, ior } => {
+                Prepared { coat: Some(plastic::Coat::new(*ior, diffuse_reflectance.min_max_over(range).1)) }
+            }
+            _ => Prepared::default(),
+        }
+    }
 }
 
 /// A material at one hit and its wavelength lanes.
@@ -118,12 +139,16 @@ pub struct Bsdf<const N: usize = 4> {
 }
 
 impl<const N: usize> Bsdf<N> {
-    /// `material` at wavelengths `lambda` on a surface with unit geometric normal `n`. A
-    /// dielectric's index is taken at lane 0: without dispersion every lane has the same, and
-    /// with it a camera path keeps lane 0 alone.
+    /// `material` (with its `prepared` constants) at wavelengths `lambda` on a surface with unit
+    /// geometric normal `n`. A dielectric's index is taken at lane 0: without dispersion every
+    /// lane has the same, and with it a camera path keeps lane 0 alone.
     #[inline]
-    pub fn new<const SPECTRAL: bool>(material: &Material, lambda: &[f64; N], n: Vec3A) -> Self {
+    pub fn new<const SPECTRAL: bool>(material: &Material, prepared: &Prepared, lambda: &[f64; N], n: Vec3A) -> Self {
         let model = match material {
+            Material::Plastic { diffuse_reflectance, .. } => Model::Plastic(plastic::Plastic::new(
+                Lanes::eval::<SPECTRAL>(diffuse_reflectance, lambda),
+                prepared.coat.expect("a plastic is prepared (Prepared::of) before it is traced"),
+            )),
             Material::Absorber => Model::Absorber,
             Material::Lambertian { reflectance, transmittance } => Model::Lambertian(lambertian::Lambertian::new(
                 Lanes::eval::<SPECTRAL>(reflectance, lambda),
@@ -162,7 +187,19 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.albedo(),
             Model::Mirror(m) => m.reflectance,
             Model::Conductor(m) => m.albedo(wo, self.n),
+            Model::Plastic(m) => m.albedo_bound(wo, self.n),
             Model::Dielectric(_) | Model::RoughDielectric(_) => Lanes::ONE,
+        }
+    }
+
+    /// The directional albedo ∫f|cosθ_i|dω_i per lane where it has a closed form (every smooth
+    /// model, Lambertian and plastic); None for the microfacet models.
+    pub fn closed_form_albedo(&self, wo: Vec3A) -> Option<Lanes<N>> {
+        match &self.model {
+            Model::Plastic(m) => Some(m.albedo(wo, self.n)),
+            Model::RoughDielectric(_) => None,
+            Model::Conductor(m) if m.ggx.is_some() => None,
+            _ => Some(self.albedo(wo)),
         }
     }
 
@@ -174,6 +211,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.mean_albedo(),
             Model::Mirror(m) => m.reflectance.mean(),
             Model::Conductor(m) => m.albedo(wo, self.n).mean(),
+            Model::Plastic(m) => m.albedo_bound(wo, self.n).0[0],
             Model::Dielectric(_) | Model::RoughDielectric(_) => 1.0,
         }
     }
@@ -185,7 +223,7 @@ impl<const N: usize> Bsdf<N> {
     pub fn samples_exactly(&self) -> bool {
         match &self.model {
             Model::Conductor(m) => m.ggx.is_none(),
-            Model::RoughDielectric(_) => false,
+            Model::RoughDielectric(_) | Model::Plastic(_) => false,
             _ => true,
         }
     }
@@ -210,7 +248,7 @@ impl<const N: usize> Bsdf<N> {
         match &self.model {
             Model::Lambertian(_) => true,
             Model::Conductor(m) => m.ggx.is_some(),
-            Model::RoughDielectric(_) => true,
+            Model::RoughDielectric(_) | Model::Plastic(_) => true,
             _ => false,
         }
     }
@@ -223,6 +261,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.f(wo, wi, self.n),
             Model::Conductor(m) => m.f(wo, wi, self.n),
             Model::RoughDielectric(m) => m.f(wo, wi, self.n, mode),
+            Model::Plastic(m) => m.f(wo, wi, self.n),
             _ => Factored::ZERO,
         }
     }
@@ -234,6 +273,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Lambertian(m) => m.pdf(wo, wi, self.n),
             Model::Conductor(m) => m.pdf(wo, wi, self.n),
             Model::RoughDielectric(m) => m.pdf(wo, wi, self.n),
+            Model::Plastic(m) => m.pdf(wo, wi, self.n),
             _ => 0.0,
         }
     }
@@ -249,6 +289,7 @@ impl<const N: usize> Bsdf<N> {
             Model::Conductor(m) => m.sample(wo, self.n, s),
             Model::Dielectric(m) => Some(m.sample::<N>(wo, self.n, mode, s)),
             Model::RoughDielectric(m) => m.sample::<N>(wo, self.n, mode, s),
+            Model::Plastic(m) => m.sample(wo, self.n, s),
         }
     }
 
@@ -265,6 +306,10 @@ impl<const N: usize> Bsdf<N> {
             Model::Conductor(m) => m.event_terms(wo, wi, self.n),
             Model::Dielectric(m) => (m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
             Model::RoughDielectric(m) => m.event_terms(wo, wi, self.n),
+            Model::Plastic(m) => {
+                let w = m.weight(lobe, wo, self.n);
+                (w, w)
+            }
         }
     }
 }

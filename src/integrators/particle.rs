@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use glam::Vec3A;
 
-use crate::bsdf::{Bsdf, Mode};
+use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::{HistoryScores, Tallies};
 use crate::geometry::{Geometry, RayEnd};
@@ -208,6 +208,7 @@ impl Kernel<'_> {
         let max_bounces = scene.simulation.max_bounces;
         let range = scene.simulation.wavelength_range_nm;
         let materials: Vec<&Material> = (0..n_surfaces).map(|s| scene.material_of(s)).collect();
+        let prepared: Vec<Prepared> = materials.iter().map(|m| Prepared::of(m, range)).collect();
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
         let mut out = Tallies::for_scene(scene);
@@ -324,8 +325,9 @@ impl Kernel<'_> {
                 // The material at the photon's wavelength, and at the hero lanes for the image; read
                 // once here for both the camera splat and the scattering event.
                 let wo = -dir;
-                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, &[lambda], n);
-                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, &hero.lambda, n));
+                let prep = &prepared[surface as usize];
+                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], n);
+                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, n));
                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                     if bsdf.is_connectible() {
                         // f(wo, ω)·|cosθ_ω| toward the camera: the lanes' part in f64, the angular in f32.
@@ -345,9 +347,10 @@ impl Kernel<'_> {
                     }
                 }
 
-                // Absorb or carry on.
+                // Absorb or carry on. One estimator decision serves both absorptions of this hit.
                 let a = bsdf.albedo(wo).0[0];
-                if EXPECTED && weight >= ROULETTE_WEIGHT {
+                let expected_here = EXPECTED && weight >= ROULETTE_WEIGHT;
+                if expected_here {
                     if a < 1.0 {
                         absorb(surface, weight * (1.0 - a), lambda, &mut absorbed, &mut spectra_absorbed);
                     }
@@ -366,13 +369,15 @@ impl Kernel<'_> {
                     break;
                 };
                 if !bsdf.samples_exactly() {
-                    // The sample's weight t = f|cos|/pdf ≤ 1 is a second absorption: the share 1 − t
-                    // stays here (expected value), or the photon survives with probability t.
-                    let t = sampled.weight().0[0];
-                    if EXPECTED && weight >= ROULETTE_WEIGHT {
+                    // What the albedo did not account for, t = (f|cos|/pdf)/albedo (≤ 1 for every
+                    // model, by its sampling), is a second absorption: the share 1 − t stays here
+                    // (expected value), or the photon survives with probability t. Were t above 1
+                    // the weight would grow, booked as negative absorption: the ledger stays exact.
+                    let t = sampled.weight().0[0] / a;
+                    if expected_here || t >= 1.0 {
                         absorb(surface, weight * (1.0 - t), lambda, &mut absorbed, &mut spectra_absorbed);
                         weight *= t;
-                        if weight <= 0.0 {
+                        if !(weight > 0.0) {
                             break;
                         }
                     } else if !(s.uniform() < t) {

@@ -1172,6 +1172,26 @@ impl<'s> Loader<'s> {
                 let specular_reflectance = fraction("specular_reflectance", 1.0)?;
                 Ok(Material::Conductor { eta, k, specular_reflectance, roughness })
             }
+            "plastic" => {
+                t.allow(&["type", "diffuse_reflectance", "ior", "roughness"])?;
+                let diffuse_reflectance = fraction("diffuse_reflectance", 0.5)?;
+                let ior = t
+                    .with("ior", |n| {
+                        let x = n.f64()?;
+                        if !(1.0..=3.0).contains(&x) {
+                            return Err(n.err(format!("a plastic's coat index must lie in [1, 3], found {x}")));
+                        }
+                        Ok(x)
+                    })?
+                    .unwrap_or(1.5);
+                if self.roughness(t)? > 0.0 {
+                    return Err(t.err_at(
+                        "roughness",
+                        "a rough plastic coat is not built yet: only roughness = 0 (a smooth coat) is accepted",
+                    ));
+                }
+                Ok(Material::Plastic { diffuse_reflectance, ior })
+            }
             "dielectric" => {
                 t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness"])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
@@ -1194,7 +1214,8 @@ impl<'s> Loader<'s> {
             other => Err(t.err_at(
                 "type",
                 format!(
-                    "unknown material type \"{other}\"; known types: absorber, lambertian, mirror, conductor, dielectric"
+                    "unknown material type \"{other}\"; known types: absorber, lambertian, mirror, conductor, plastic, \
+                     dielectric"
                 ),
             )),
         }
@@ -1488,6 +1509,7 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
             simplify(transmittance, range);
         }
         Material::Mirror { reflectance } => simplify(reflectance, range),
+        Material::Plastic { diffuse_reflectance, .. } => simplify(diffuse_reflectance, range),
         Material::Conductor { eta, k, specular_reflectance, .. } => {
             simplify(eta, range);
             simplify(k, range);

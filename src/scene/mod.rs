@@ -53,6 +53,12 @@ pub enum Material {
         specular_reflectance: Spectrum,
         roughness: f64,
     },
+    /// A diffuse base of albedo `diffuse_reflectance` under a smooth dielectric coat of index
+    /// `ior` (against 1 outside).
+    Plastic {
+        diffuse_reflectance: Spectrum,
+        ior: f64,
+    },
     /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
     /// rough (GGX `roughness` α > 0).
     Dielectric {
@@ -70,6 +76,7 @@ impl Material {
             Material::Lambertian { .. } => "lambertian",
             Material::Mirror { .. } => "mirror",
             Material::Conductor { .. } => "conductor",
+            Material::Plastic { .. } => "plastic",
             Material::Dielectric { .. } => "dielectric",
         }
     }
@@ -317,6 +324,11 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
             Material::Mirror { reflectance } => {
                 fx.specular_reflection |= positive(reflectance);
                 fx.spectral |= varies(reflectance);
+            }
+            Material::Plastic { diffuse_reflectance, .. } => {
+                fx.specular_reflection = true;
+                fx.diffuse_reflection |= positive(diffuse_reflectance);
+                fx.spectral |= varies(diffuse_reflectance);
             }
             Material::Conductor { eta, k, specular_reflectance, roughness } => {
                 if positive(specular_reflectance) {

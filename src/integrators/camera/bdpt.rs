@@ -272,7 +272,7 @@ impl ImageKernel<'_> {
             v.medium = medium;
             v.on_dielectric = is_dielectric;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &wl.lambda, n);
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n);
             if bsdf.is_connectible() {
                 v.bsdf = Some(bsdf);
             }

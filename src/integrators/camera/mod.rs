@@ -22,7 +22,7 @@ mod path;
 
 use glam::Vec3A;
 
-use crate::bsdf::{Bsdf, Mode, Sample};
+use crate::bsdf::{Bsdf, Mode, Prepared, Sample};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd};
@@ -121,6 +121,8 @@ pub struct ImageKernel<'a> {
     pub camera: &'a CameraModel,
     pub integrator: Integrator,
     materials: Vec<&'a Material>,
+    /// Per surface: its material's constants worked out once (`bsdf::Prepared`).
+    prepared: Vec<Prepared>,
     /// Per surface: the light it belongs to, and whether it is a dispersive dielectric.
     surface_light: Vec<Option<usize>>,
     dispersive: Vec<bool>,
@@ -190,6 +192,7 @@ impl<'a> ImageKernel<'a> {
             camera,
             integrator,
             point_views,
+            prepared: materials.iter().map(|m| Prepared::of(m, range)).collect(),
             materials,
             surface_light: scene.surfaces.iter().map(|s| s.light).collect(),
             dispersive,

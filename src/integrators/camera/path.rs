@@ -84,7 +84,7 @@ impl ImageKernel<'_> {
             scatterings += 1;
 
             let (p, err) = geo.hit_point(&hit);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &wl.lambda, n);
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n);
             if bsdf.is_absorber() {
                 break;
             }
