@@ -16,6 +16,11 @@ use photon::sampling::{cosine_hemisphere, cosine_power_lobe, uniform_hemisphere,
 use photon::scene::{LightShape, Material};
 use photon::spectrum::Spectrum;
 
+/// A material's run-wide constants, kept for the test's lifetime.
+fn prepared(m: &Material) -> &'static Prepared {
+    Box::leak(Box::new(Prepared::of(m, (400.0, 700.0))))
+}
+
 const N_COS: usize = 12;
 const N_PHI: usize = 24;
 const SAMPLES: usize = 300_000;
@@ -232,12 +237,7 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian reflect + transmit",
         9,
-        |s| {
-            Bsdf::<1>::new::<true>(&m, &Prepared::of(&m, (400.0, 700.0)), &[550.0], n)
-                .sample(-d, Mode::Importance, s)
-                .unwrap()
-                .wi
-        },
+        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-d, Mode::Importance, s).unwrap().wi,
         |w| {
             let c = w.z as f64;
             (0.3 * c.max(0.0) + 0.5 * (-c).max(0.0)) / (PI * 0.8)
@@ -248,12 +248,7 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian from below",
         10,
-        |s| {
-            Bsdf::<1>::new::<true>(&m, &Prepared::of(&m, (400.0, 700.0)), &[550.0], n)
-                .sample(-up, Mode::Importance, s)
-                .unwrap()
-                .wi
-        },
+        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-up, Mode::Importance, s).unwrap().wi,
         |w| {
             let c = w.z as f64;
             (0.3 * (-c).max(0.0) + 0.5 * c.max(0.0)) / (PI * 0.8)
@@ -355,7 +350,7 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
             specular_reflectance: Spectrum::Constant(1.0),
             roughness: alpha,
         };
-        let bsdf = Bsdf::<1>::new::<false>(&metal, &Prepared::of(&metal, (400.0, 700.0)), &[f64::NAN], n);
+        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n);
         for (deg, side) in [(0.0f64, 1.0f32), (45.0, 1.0), (80.0, -1.0), (89.0, 1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = Vec3A::new(st as f32, 0.0, side * ct as f32).normalize();
@@ -382,8 +377,8 @@ fn the_lossy_harness_rejects_a_neighbouring_roughness() {
     };
     let (sampled, judged) = (metal(0.5), metal(0.4));
     let (a, b) = (
-        Bsdf::<1>::new::<false>(&sampled, &Prepared::of(&sampled, (400.0, 700.0)), &[f64::NAN], n),
-        Bsdf::<1>::new::<false>(&judged, &Prepared::of(&judged, (400.0, 700.0)), &[f64::NAN], n),
+        Bsdf::<1>::new::<false>(&sampled, prepared(&sampled), &[f64::NAN], n),
+        Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n),
     );
     let wo = Vec3A::new(0.5, 0.0, 0.866).normalize();
     let (_, _, p, _) = chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
@@ -408,12 +403,7 @@ fn rough_dielectric_reflection_and_transmission_match_their_pdf_from_both_sides(
     let n = frame.n;
     let mut seed = 80;
     for alpha in [0.2, 0.5] {
-        let bsdf = Bsdf::<1>::new::<false>(
-            &rough_glass(alpha),
-            &Prepared::of(&rough_glass(alpha), (400.0, 700.0)),
-            &[f64::NAN],
-            n,
-        );
+        let bsdf = Bsdf::<1>::new::<false>(&rough_glass(alpha), prepared(&rough_glass(alpha)), &[f64::NAN], n);
         for (deg, side) in [(0.0f64, 1.0f32), (50.0, 1.0), (85.0, 1.0), (20.0, -1.0), (45.0, -1.0), (70.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -436,8 +426,8 @@ fn plastic_base_matches_its_pdf_with_the_coat_reflection_as_the_lost_share() {
     let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
     let mut seed = 120;
     for (rho, eta) in [(0.8, 1.5), (0.2, 1.5), (0.9, 2.2)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta };
-        let bsdf = Bsdf::<1>::new::<false>(&m, &Prepared::of(&m, (400.0, 700.0)), &[f64::NAN], frame.n);
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0 };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
         for (deg, side) in [(0.0f64, 1.0f32), (60.0, 1.0), (85.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -446,6 +436,27 @@ fn plastic_base_matches_its_pdf_with_the_coat_reflection_as_the_lost_share() {
                 &format!("plastic ρ = {rho}, η = {eta}, θ_o = {deg}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).filter(|x| !x.lobe.is_delta()).map(|x| x.wi),
+                |wi| bsdf.pdf(wo, wi),
+            );
+        }
+    }
+}
+
+#[test]
+fn rough_plastic_matches_its_mixture_pdf() {
+    let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
+    let mut seed = 140;
+    for (rho, alpha) in [(0.8, 0.2), (0.3, 0.5)] {
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
+        for (deg, side) in [(0.0f64, 1.0f32), (60.0, -1.0), (85.0, 1.0)] {
+            let (st, ct) = deg.to_radians().sin_cos();
+            let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
+            seed += 1;
+            assert_matches_lossy(
+                &format!("rough plastic ρ = {rho}, α = {alpha}, θ_o = {deg}°, side {side}"),
+                seed,
+                |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
                 |wi| bsdf.pdf(wo, wi),
             );
         }

@@ -96,28 +96,70 @@ fn cornell_box_with_rough_metal_blocks_light_path_and_bdpt_images_agree() {
 }
 
 #[test]
-fn glossy_cornell_box_path_and_bdpt_images_agree_and_the_light_tracer_agrees_off_the_plastic_wall() {
-    // Rough aluminium (α = 0.2), frosted glass (α = 0.1) and a plastic back wall (a smooth coat):
-    // path tracing and BDPT agree block by block. The light tracer cannot image the coat's mirror
-    // reflection (a delta lobe seen by a pinhole, as for mirrors), so it is held to the blocks
-    // that show no back wall.
+fn glossy_cornell_box_light_path_and_bdpt_images_agree() {
+    // Rough aluminium (α = 0.2), frosted glass (α = 0.1) and a rough plastic back wall (α = 0.1):
+    // every surface the camera sees is connectible, so all three integrators image all of it.
+    // Light tracing and BDPT agree block by block. Through the frosted block the path tracer
+    // must find the lamp by two narrow refractions (its light samples end on the glass), so its
+    // per-pixel errors are heavy-tailed there and understate the spread of a 256-pixel block: it
+    // is held to each block off the glass, and to the glass's pixels as one region.
     let toml =
         common::bundled_toml("cornell_glossy.toml").replace("resolution = [512, 512]", "resolution = [128, 128]");
     let (path, path_mean, _) = render(&toml, Integrator::Path, 2_000_000, 13);
     let (bdpt, bdpt_mean, _) = render(&toml, Integrator::Bdpt, 2_000_000, 13);
-    let (light, _, _) = render(&toml, Integrator::Light, 4_000_000, 13);
+    let (light, light_mean, _) = render(&toml, Integrator::Light, 4_000_000, 13);
+    for (name, m) in [("path", path_mean), ("light", light_mean)] {
+        let z = (m.0 - bdpt_mean.0) / (m.1.powi(2) + bdpt_mean.1.powi(2)).sqrt();
+        assert!(z.abs() < 4.0, "mean Y: {name} {m:?} vs BDPT {bdpt_mean:?}: z = {z:.2}");
+    }
+    let hits = primary_hits(&toml);
+    let on_glass = |p: usize| hits[p].as_ref().is_some_and(|(n, _)| n == "short_block");
+    let glass_in_block = |b: usize| {
+        let (br, bc) = (b / 8, b % 8);
+        (0..256).any(|k| on_glass((br * 16 + k / 16) * 128 + bc * 16 + k % 16))
+    };
+    let (bp, bb, bl) = (blocks(&path, 16), blocks(&bdpt, 16), blocks(&light, 16));
+    let mut off_glass = 0;
+    for k in 0..bb.len() {
+        let z = (bl[k].0 - bb[k].0) / (bl[k].1 + bb[k].1).sqrt();
+        assert!(z.abs() < 4.0, "block {k}: light {:?} vs BDPT {:?}: z = {z:.2}", bl[k], bb[k]);
+        if !glass_in_block(k) {
+            off_glass += 1;
+            let z = (bp[k].0 - bb[k].0) / (bp[k].1 + bb[k].1).sqrt();
+            assert!(z.abs() < 4.0, "block {k}: path {:?} vs BDPT {:?}: z = {z:.2}", bp[k], bb[k]);
+        }
+    }
+    assert!(off_glass >= 48, "only {off_glass} blocks show no glass");
+    let glass: Vec<usize> = (0..hits.len()).filter(|&p| on_glass(p)).collect();
+    assert!(glass.len() > 500, "the glass block covers {} pixels", glass.len());
+    let (a, b) = (region(&path, &glass), region(&bdpt, &glass));
+    let z = (a.0 - b.0) / (a.1 * a.1 + b.1 * b.1).sqrt();
+    assert!(z.abs() < 4.0, "glass pixels: path {a:?} vs BDPT {b:?}: z = {z:.2}");
+}
+
+#[test]
+fn smooth_plastic_wall_path_and_bdpt_agree_and_the_light_tracer_agrees_off_it() {
+    // With a smooth coat the back wall's mirror reflection is a delta lobe: the light tracer
+    // cannot image it (as for mirrors), so it is held to the blocks that show no back wall.
+    let toml = common::bundled_toml("cornell_glossy.toml")
+        .replace("resolution = [512, 512]", "resolution = [64, 64]")
+        .replace("cornell_white.csv\" }\nior = 1.5\nroughness = 0.1\n", "cornell_white.csv\" }\nior = 1.5\n");
+    assert!(toml.contains("cornell_white.csv\" }\nior = 1.5\n\n") && toml.contains("roughness = 0.1"));
+    let (path, path_mean, _) = render(&toml, Integrator::Path, 1_000_000, 14);
+    let (bdpt, bdpt_mean, _) = render(&toml, Integrator::Bdpt, 1_000_000, 14);
+    let (light, _, _) = render(&toml, Integrator::Light, 2_000_000, 14);
     let z = (path_mean.0 - bdpt_mean.0) / (path_mean.1.powi(2) + bdpt_mean.1.powi(2)).sqrt();
     assert!(z.abs() < 4.0, "mean Y: path {path_mean:?} vs BDPT {bdpt_mean:?}: z = {z:.2}");
     let hits = primary_hits(&toml);
+    let (size, block) = (64, 8);
     let wall_in_block = |b: usize| {
-        let (bw, block) = (128 / 16, 16);
-        let (br, bc) = (b / bw, b % bw);
+        let (br, bc) = (b / (size / block), b % (size / block));
         (0..block * block).any(|k| {
-            let p = (br * block + k / block) * 128 + bc * block + k % block;
+            let p = (br * block + k / block) * size + bc * block + k % block;
             hits[p].as_ref().is_some_and(|(n, _)| n == "back_wall")
         })
     };
-    let (bp, bb, bl) = (blocks(&path, 16), blocks(&bdpt, 16), blocks(&light, 16));
+    let (bp, bb, bl) = (blocks(&path, block), blocks(&bdpt, block), blocks(&light, block));
     let mut off_wall = 0;
     for k in 0..bp.len() {
         let z = (bp[k].0 - bb[k].0) / (bp[k].1 + bb[k].1).sqrt();

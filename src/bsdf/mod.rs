@@ -102,19 +102,19 @@ impl<const N: usize> Sample<N> {
 }
 
 #[derive(Clone, Copy, Debug)]
-enum Model<const N: usize> {
+enum Model<'a, const N: usize> {
     Absorber,
     Lambertian(lambertian::Lambertian<N>),
     Mirror(mirror::Mirror<N>),
     Conductor(conductor::Conductor<N>),
     Dielectric(dielectric::Dielectric),
     RoughDielectric(rough_dielectric::RoughDielectric),
-    Plastic(plastic::Plastic<N>),
+    Plastic(plastic::Plastic<'a, N>),
 }
 
 /// What a model needs worked out once per run rather than at every hit: a plastic's coat
 /// averages. Built per material by `Prepared::of`; the default serves every other model.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Prepared {
     coat: Option<plastic::Coat>,
 }
@@ -123,31 +123,32 @@ impl Prepared {
     /// For `material` over the simulated wavelength range `range` (nm).
     pub fn of(material: &Material, range: (f64, f64)) -> Self {
         match material {
-            Material::Plastic { diffuse_reflectance, ior } => {
-                Prepared { coat: Some(plastic::Coat::new(*ior, diffuse_reflectance.min_max_over(range).1)) }
+            Material::Plastic { diffuse_reflectance, ior, roughness } => {
+                let rho_max = diffuse_reflectance.min_max_over(range).1;
+                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, *roughness)) }
             }
             _ => Prepared::default(),
         }
     }
 }
 
-/// A material at one hit and its wavelength lanes.
+/// A material at one hit and its wavelength lanes, borrowing its run-wide constants.
 #[derive(Clone, Copy, Debug)]
-pub struct Bsdf<const N: usize = 4> {
-    model: Model<N>,
+pub struct Bsdf<'a, const N: usize = 4> {
+    model: Model<'a, N>,
     n: Vec3A,
 }
 
-impl<const N: usize> Bsdf<N> {
+impl<'a, const N: usize> Bsdf<'a, N> {
     /// `material` (with its `prepared` constants) at wavelengths `lambda` on a surface with unit
     /// geometric normal `n`. A dielectric's index is taken at lane 0: without dispersion every
     /// lane has the same, and with it a camera path keeps lane 0 alone.
     #[inline]
-    pub fn new<const SPECTRAL: bool>(material: &Material, prepared: &Prepared, lambda: &[f64; N], n: Vec3A) -> Self {
+    pub fn new<const SPECTRAL: bool>(material: &Material, prepared: &'a Prepared, lambda: &[f64; N], n: Vec3A) -> Self {
         let model = match material {
             Material::Plastic { diffuse_reflectance, .. } => Model::Plastic(plastic::Plastic::new(
                 Lanes::eval::<SPECTRAL>(diffuse_reflectance, lambda),
-                prepared.coat.expect("a plastic is prepared (Prepared::of) before it is traced"),
+                prepared.coat.as_ref().expect("a plastic is prepared (Prepared::of) before it is traced"),
             )),
             Material::Absorber => Model::Absorber,
             Material::Lambertian { reflectance, transmittance } => Model::Lambertian(lambertian::Lambertian::new(
@@ -196,6 +197,7 @@ impl<const N: usize> Bsdf<N> {
     /// model, Lambertian and plastic); None for the microfacet models.
     pub fn closed_form_albedo(&self, wo: Vec3A) -> Option<Lanes<N>> {
         match &self.model {
+            Model::Plastic(m) if m.is_rough() => None,
             Model::Plastic(m) => Some(m.albedo(wo, self.n)),
             Model::RoughDielectric(_) => None,
             Model::Conductor(m) if m.ggx.is_some() => None,
@@ -293,23 +295,41 @@ impl<const N: usize> Bsdf<N> {
         }
     }
 
-    /// The throughput and the survival probability per lane of a scattering from `wo` into
-    /// `lobe` toward `wi` that another lane's model sampled (hero wavelengths): the factor this
-    /// lane's own sample would carry relative to a direction density the lanes share, and the
-    /// albedo its particle estimator would have used (`Hero::event`).
+    /// Per lane, for a scattering from `wo` into `lobe` toward `wi` that another lane's model
+    /// sampled (hero wavelengths; `Hero::event`): the throughput factor relative to a direction
+    /// density the lanes share; the albedo the lane's expected-value estimator would weight by
+    /// (its lobe probability is factor/albedo); and the probability its analog estimator would
+    /// have given the event (survivals and lobe choice).
     #[inline]
-    pub fn event_terms(&self, lobe: Lobe, wo: Vec3A, wi: Vec3A, mode: Mode) -> (Lanes<N>, Lanes<N>) {
+    pub fn event_terms(&self, lobe: Lobe, wo: Vec3A, wi: Vec3A, mode: Mode) -> EventTerms<N> {
+        let exact = |factor: Lanes<N>, albedo: Lanes<N>| EventTerms { factor, albedo, analog: factor };
+        // Sampled alike at every lane: the sample's weight w is the throughput; the expected-value
+        // estimator weights by it (lobe probability 1 relative to the shared density) and the
+        // analog one survives the first absorption a and then min(1, w/a).
+        let shared = |w: Lanes<N>, a: f64| EventTerms { factor: w, albedo: w, analog: Lanes(w.0.map(|x| x.min(a))) };
         match &self.model {
-            Model::Absorber => (Lanes::ZERO, Lanes::ZERO),
-            Model::Lambertian(m) => (m.lobe_factor(lobe), m.albedo()),
-            Model::Mirror(m) => (m.reflectance, m.reflectance),
-            Model::Conductor(m) => m.event_terms(wo, wi, self.n),
-            Model::Dielectric(m) => (m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
-            Model::RoughDielectric(m) => m.event_terms(wo, wi, self.n),
-            Model::Plastic(m) => {
-                let w = m.weight(lobe, wo, self.n);
-                (w, w)
+            Model::Absorber => exact(Lanes::ZERO, Lanes::ZERO),
+            Model::Lambertian(m) => exact(m.lobe_factor(lobe), m.albedo()),
+            Model::Mirror(m) => exact(m.reflectance, m.reflectance),
+            Model::Conductor(m) => {
+                let (w, a) = m.event_terms(wo, wi, self.n);
+                if m.ggx.is_none() {
+                    exact(w, a)
+                } else {
+                    shared(w, 1.0)
+                }
             }
+            Model::Dielectric(m) => exact(m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
+            Model::RoughDielectric(m) => shared(m.event_terms(wo, wi, self.n).0, 1.0),
+            Model::Plastic(m) => shared(m.weight(lobe, wo, wi, self.n), m.albedo_bound(wo, self.n).0[0]),
         }
     }
+}
+
+/// What `Bsdf::event_terms` answers for each lane.
+#[derive(Clone, Copy, Debug)]
+pub struct EventTerms<const N: usize> {
+    pub factor: Lanes<N>,
+    pub albedo: Lanes<N>,
+    pub analog: Lanes<N>,
 }

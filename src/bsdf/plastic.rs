@@ -1,5 +1,6 @@
-//! Plastic: a diffuse base of albedo ρ under a smooth dielectric coat of index η (Mitsuba's
-//! `plastic` with `nonlinear = true`). The coat reflects F(θ_o) specularly; the rest enters,
+//! Plastic: a diffuse base of albedo ρ under a dielectric coat of index η, smooth or rough
+//! (Mitsuba's `plastic` and `roughplastic` with `nonlinear = true`). Smooth, the coat reflects
+//! F(θ_o) specularly; the rest enters,
 //! bounces between base and coat (each bounce the base keeps ρ, the coat returns the internal
 //! diffuse reflectance F̄_int), and leaves through the coat:
 //!   f_d(wo, wi) = ρ/(1 − ρ F̄_int) · (1 − F(θ_i))(1 − F(θ_o)) / (π η²),
@@ -7,21 +8,33 @@
 //! 1 − F̄_int = (1 − F̄_ext)/η², A(1) = 1 and a white plastic returns everything. Both sides
 //! reflect alike (Mitsuba's `twosided`).
 //!
-//! Sampling is the same at every wavelength: the specular lobe with probability
-//! p_s = F_o/(F_o + t_o A_max), A_max the base's largest A over the spectrum, t_o = 1 − F_o; else
-//! a direction ∝ (1 − F(θ_i)) cosθ_i (cosine-weighted, kept with probability t_i/t(0)). Every
-//! weight is then ≤ 1: F_o + t_o A_max for the coat, (A(ρ_λ)/A_max)(F_o + t_o A_max) for the base.
+//!
+//! Rough (GGX α), the coat's reflection is the rough dielectric's, f_s = F(wo·m) D G2/(4 cosθ_o
+//! cosθ_i), and 1 − F becomes the coat's transmittance t(θ) = 1 − E_r(θ), E_r the directional
+//! albedo of f_s, tabulated at μ = k/63 and interpolated as Mitsuba does; F̄_ext = 1 − 2∫t μ dμ
+//! and F̄_int = 2∫E_r,int μ dμ (E_r,int from inside, index 1/η) replace the smooth averages. The
+//! masking loss of f_s is not recovered, so a rough white plastic returns a little less than 1.
+//!
+//! Sampling is the same at every wavelength: the coat's lobe with probability
+//! p_s = E_o/(E_o + t_o A_max), E_o = 1 − t_o its albedo and A_max the base's largest A over the
+//! spectrum; else a direction ∝ t(θ_i) cosθ_i (cosine-weighted, kept with probability t_i/t_max).
+//! Smooth, every weight is ≤ 1: E_o + t_o A_max for the coat, (A(ρ_λ)/A_max)(E_o + t_o A_max) for
+//! the base. Rough, a sample is weighted by the whole f over the mixture density.
 
 use glam::Vec3A;
 use std::f64::consts::FRAC_1_PI;
 
 use super::dielectric::fresnel_dielectric;
+use super::microfacet::{Frame, Ggx};
 use super::{reflect, Factored, Lobe, Sample};
 use crate::sampling::{cosine_hemisphere, Sampler};
 use crate::spectrum::Lanes;
 
+/// Points of a rough coat's transmittance table, at μ = k/(TABLE − 1) (Mitsuba's 64).
+const TABLE: usize = 64;
+
 /// A coat's constants, worked out once per run (`super::Prepared`).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Coat {
     pub eta: f64,
     /// Cosine-weighted hemispherical averages of the coat's Fresnel reflectance, 2∫F(μ)μ dμ, seen
@@ -30,10 +43,48 @@ pub struct Coat {
     pub fdr_int: f64,
     /// A(ρ) at the base's largest albedo over the simulated range.
     pub a_max: f64,
+    /// A rough coat: its GGX distribution and its transmittance 1 − E_r(μ) at μ = k/63.
+    rough: Option<(Ggx, Box<[f64; TABLE]>)>,
+    /// The largest transmittance (of the table, or at normal incidence when smooth).
+    t_max: f64,
+}
+
+/// Directional albedo E_r(μ) of the coat's GGX reflection for light arriving at cosθ = μ on the
+/// side of index `eta_i`: ∫ D(m) F(wo·m) G2 |wo·m|/cosθ_o dm, by the midpoint rule over the
+/// distribution's own variables (tanθ_m = α√(v/(1 − v)), φ), in which D(m) cosθ_m dm is uniform.
+fn rough_reflectance(ggx: &Ggx, mu: f64, eta_i: f64, eta_t: f64) -> f64 {
+    const NV: usize = 256;
+    const NPHI: usize = 64;
+    let wo = Vec3A::new((1.0 - mu * mu).max(0.0).sqrt() as f32, 0.0, mu as f32);
+    let mut sum = 0.0;
+    for i in 0..NV {
+        let v = (i as f64 + 0.5) / NV as f64;
+        let tan_m = ggx.alpha_x * (v / (1.0 - v)).sqrt();
+        let cos_m = 1.0 / (1.0 + tan_m * tan_m).sqrt();
+        let sin_m = tan_m * cos_m;
+        for j in 0..NPHI {
+            let phi = std::f64::consts::PI * 2.0 * (j as f64 + 0.5) / NPHI as f64;
+            let m = Vec3A::new((sin_m * phi.cos()) as f32, (sin_m * phi.sin()) as f32, cos_m as f32);
+            let cos_om = wo.dot(m) as f64;
+            if cos_om <= 0.0 {
+                continue;
+            }
+            let wi = 2.0 * wo.dot(m) * m - wo;
+            if wi.z <= 0.0 {
+                continue;
+            }
+            let f = fresnel_dielectric(cos_om.min(1.0), eta_i, eta_t).0;
+            sum += f * ggx.g2(wo, wi) * cos_om / (cos_m * mu);
+        }
+    }
+    sum / (NV * NPHI) as f64
 }
 
 impl Coat {
-    pub fn new(eta: f64, rho_max: f64) -> Self {
+    pub fn new(eta: f64, rho_max: f64, alpha: f64) -> Self {
+        if alpha > 0.0 {
+            return Self::rough(eta, rho_max, Ggx::new(alpha, alpha));
+        }
         let average = |eta_i: f64, eta_t: f64| {
             // Below the critical cosine μ_c everything is reflected (∫₀^μc 2μ dμ = μ_c²). Above
             // it F has a square-root edge at μ_c, which μ = μ_c + (1 − μ_c)v² smooths out for
@@ -50,7 +101,33 @@ impl Coat {
                 / N as f64;
             mu_c * mu_c + 2.0 * rest
         };
-        let mut coat = Coat { eta, fdr_ext: average(1.0, eta), fdr_int: average(eta, 1.0), a_max: 0.0 };
+        let mut coat =
+            Coat { eta, fdr_ext: average(1.0, eta), fdr_int: average(eta, 1.0), a_max: 0.0, rough: None, t_max: 0.0 };
+        coat.t_max = coat.transmittance(1.0);
+        coat.a_max = coat.base_albedo(rho_max);
+        coat
+    }
+
+    fn rough(eta: f64, rho_max: f64, ggx: Ggx) -> Self {
+        let mu = |k: usize| (k as f64 / (TABLE - 1) as f64).max(1e-6);
+        let t: [f64; TABLE] = std::array::from_fn(|k| 1.0 - rough_reflectance(&ggx, mu(k), 1.0, eta));
+        let e_int: [f64; TABLE] = std::array::from_fn(|k| rough_reflectance(&ggx, mu(k), eta, 1.0));
+        // 2∫ g(μ) μ dμ by the trapezoid rule on the table's points.
+        let average = |g: &dyn Fn(usize) -> f64| {
+            let h = 1.0 / (TABLE - 1) as f64;
+            (0..TABLE).map(|k| g(k) * (k as f64 * h) * if k == 0 || k == TABLE - 1 { 0.5 } else { 1.0 }).sum::<f64>()
+                * 2.0
+                * h
+        };
+        let t_max = t.iter().copied().fold(0.0, f64::max);
+        let mut coat = Coat {
+            eta,
+            fdr_ext: 1.0 - average(&|k| t[k]),
+            fdr_int: average(&|k| e_int[k]),
+            a_max: 0.0,
+            rough: Some((ggx, Box::new(t))),
+            t_max,
+        };
         coat.a_max = coat.base_albedo(rho_max);
         coat
     }
@@ -62,26 +139,34 @@ impl Coat {
         (rho * (1.0 - self.fdr_ext) / (self.eta * self.eta * (1.0 - rho * self.fdr_int))).min(1.0)
     }
 
-    /// 1 − F(θ) for light crossing the coat at cosθ (from outside; the same from inside at the
-    /// matching refracted angle).
+    /// t(θ): 1 − F(θ) for a smooth coat, the interpolated table for a rough one.
     #[inline]
     fn transmittance(&self, cos: f64) -> f64 {
-        1.0 - fresnel_dielectric(cos.clamp(0.0, 1.0), 1.0, self.eta).0
+        let cos = cos.clamp(0.0, 1.0);
+        match &self.rough {
+            None => 1.0 - fresnel_dielectric(cos, 1.0, self.eta).0,
+            Some((_, table)) => {
+                let x = cos * (TABLE - 1) as f64;
+                let k = (x as usize).min(TABLE - 2);
+                let w = x - k as f64;
+                table[k] * (1.0 - w) + table[k + 1] * w
+            }
+        }
     }
 }
 
 #[derive(Clone, Copy, Debug)]
-pub struct Plastic<const N: usize> {
+pub struct Plastic<'a, const N: usize> {
     /// ρ/(1 − ρ F̄_int)/η² per lane: the base's factor of f_d.
     base: Lanes<N>,
     /// A(ρ) per lane.
     albedo: Lanes<N>,
-    coat: Coat,
+    coat: &'a Coat,
 }
 
-impl<const N: usize> Plastic<N> {
+impl<'a, const N: usize> Plastic<'a, N> {
     #[inline]
-    pub fn new(rho: Lanes<N>, coat: Coat) -> Self {
+    pub fn new(rho: Lanes<N>, coat: &'a Coat) -> Self {
         let eta2 = coat.eta * coat.eta;
         Plastic {
             base: Lanes(rho.0.map(|r| r / (1.0 - r * coat.fdr_int) / eta2)),
@@ -90,31 +175,53 @@ impl<const N: usize> Plastic<N> {
         }
     }
 
-    /// The probability of the coat's specular lobe from `cos_o`, and t_o.
+    /// The probability of the coat's lobe from `cos_o`, and t_o.
     #[inline]
     fn p_specular(&self, cos_o: f64) -> (f64, f64) {
         let t_o = self.coat.transmittance(cos_o);
-        let f_o = 1.0 - t_o;
-        let total = f_o + t_o * self.coat.a_max;
-        (if total > 0.0 { f_o / total } else { 1.0 }, t_o)
+        let e_o = 1.0 - t_o;
+        let total = e_o + t_o * self.coat.a_max;
+        (if total > 0.0 { e_o / total } else { 1.0 }, t_o)
     }
 
-    /// The upper bound F_o + t_o A_max of the albedo, the same at every lane (the particle
-    /// tracer's first absorption; the base's A(ρ_λ)/A_max is the sample's weight).
+    /// E_o + t_o A_max, the same at every lane: the particle tracer's first absorption (exact
+    /// for a smooth coat and a grey base; the rest is the sample's weight).
     #[inline]
     pub fn albedo_bound(&self, wo: Vec3A, n: Vec3A) -> Lanes<N> {
         let t_o = self.coat.transmittance(wo.dot(n).abs() as f64);
         Lanes::splat((1.0 - t_o) + t_o * self.coat.a_max)
     }
 
-    /// The albedo per lane: F_o + t_o A(ρ).
+    /// The albedo per lane, E_o + t_o A(ρ) (exact for the smooth coat; for the rough one E_o is
+    /// the interpolated table).
     #[inline]
     pub fn albedo(&self, wo: Vec3A, n: Vec3A) -> Lanes<N> {
         let t_o = self.coat.transmittance(wo.dot(n).abs() as f64);
         Lanes(self.albedo.0.map(|a| (1.0 - t_o) + t_o * a))
     }
 
-    /// The diffuse part (the coat's specular lobe is a delta).
+    pub fn is_rough(&self) -> bool {
+        self.coat.rough.is_some()
+    }
+
+    /// The frame on `wo`'s side and the rough coat's lobe f_s(wo, wi) with its sampling density
+    /// (visible normals, reflected); zero below the surface.
+    #[inline]
+    fn coat_lobe(&self, ggx: &Ggx, wo: Vec3A, wi: Vec3A, n: Vec3A) -> (f64, f64) {
+        let frame = Frame::new(n, Vec3A::ZERO);
+        let frame = if wo.dot(n) >= 0.0 { frame } else { frame.flipped() };
+        let (o, i) = (frame.to_local(wo), frame.to_local(wi));
+        if !(o.z > 0.0 && i.z > 0.0) {
+            return (0.0, 0.0);
+        }
+        let m = (o + i).normalize();
+        let cos_om = (o.dot(m) as f64).min(1.0);
+        let f = fresnel_dielectric(cos_om, 1.0, self.coat.eta).0 * ggx.d(m) * ggx.g2(o, i)
+            / (4.0 * o.z as f64 * i.z as f64);
+        (f, ggx.visible_pdf(o, m) / (4.0 * cos_om))
+    }
+
+    /// f(wo, wi): the base, and for a rough coat its lobe (a smooth coat's is a delta).
     #[inline]
     pub fn f(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Factored<N> {
         let (co, ci) = (wo.dot(n), wi.dot(n));
@@ -122,10 +229,16 @@ impl<const N: usize> Plastic<N> {
             return Factored::ZERO;
         }
         let t = self.coat.transmittance(co.abs() as f64) * self.coat.transmittance(ci.abs() as f64);
-        Factored { spectral: self.base, angular: t * FRAC_1_PI }
+        match &self.coat.rough {
+            None => Factored { spectral: self.base, angular: t * FRAC_1_PI },
+            Some((ggx, _)) => {
+                let (f_s, _) = self.coat_lobe(ggx, wo, wi, n);
+                Factored { spectral: Lanes(self.base.0.map(|b| b * t * FRAC_1_PI + f_s)), angular: 1.0 }
+            }
+        }
     }
 
-    /// Density of the diffuse lobe: (1 − p_s) t_i cosθ_i / (π (1 − F̄_ext)).
+    /// The base's density (1 − p_s) t_i cosθ_i / (π (1 − F̄_ext)), plus p_s times the rough coat's.
     #[inline]
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
         let (co, ci) = (wo.dot(n), wi.dot(n));
@@ -133,15 +246,24 @@ impl<const N: usize> Plastic<N> {
             return 0.0;
         }
         let (p_s, _) = self.p_specular(co.abs() as f64);
-        let ci = ci.abs() as f64;
-        (1.0 - p_s) * self.coat.transmittance(ci) * ci * FRAC_1_PI / (1.0 - self.coat.fdr_ext)
+        let c = ci.abs() as f64;
+        let base = (1.0 - p_s) * self.coat.transmittance(c) * c * FRAC_1_PI / (1.0 - self.coat.fdr_ext);
+        match &self.coat.rough {
+            None => base,
+            Some((ggx, _)) => base + p_s * self.coat_lobe(ggx, wo, wi, n).1,
+        }
     }
 
-    /// A sample's weight per lane in `lobe`: F_o/p_s = F_o + t_o A_max for the coat, t_o A(ρ_λ)/(1 − p_s)
-    /// for the base. The lanes share the sampling, so this is also each lane's survival (hero weights).
+    /// A sample's weight per lane in `lobe` toward `wi`. The lanes share the sampling, so this is
+    /// also each lane's factor for the hero weights.
     #[inline]
-    pub fn weight(&self, lobe: Lobe, wo: Vec3A, n: Vec3A) -> Lanes<N> {
+    pub fn weight(&self, lobe: Lobe, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Lanes<N> {
         let (p_s, t_o) = self.p_specular(wo.dot(n).abs() as f64);
+        if self.is_rough() {
+            let pdf = self.pdf(wo, wi, n);
+            let value = self.f(wo, wi, n).value() * (wi.dot(n).abs() as f64);
+            return if pdf > 0.0 { Lanes(value.0.map(|v| v / pdf)) } else { Lanes::ZERO };
+        }
         match lobe {
             Lobe::SpecularReflection => Lanes::splat((1.0 - t_o) / p_s),
             Lobe::DiffuseReflection => Lanes(self.albedo.0.map(|a| t_o * a / (1.0 - p_s))),
@@ -153,31 +275,47 @@ impl<const N: usize> Plastic<N> {
     pub fn sample(&self, wo: Vec3A, n: Vec3A, s: &mut Sampler) -> Option<Sample<N>> {
         let co = wo.dot(n);
         let (p_s, t_o) = self.p_specular(co.abs() as f64);
-        if s.uniform() < p_s {
-            let factor = Lanes::splat(1.0 - t_o);
-            return Some(Sample {
-                wi: reflect(-wo, n),
-                lobe: Lobe::SpecularReflection,
-                factor,
-                lobe_pdf: p_s,
-                pdf: 0.0,
-            });
-        }
         let n_out = if co > 0.0 { n } else { -n };
-        // Cosine-weighted, kept with probability t_i / t(normal): density ∝ t_i cosθ_i. A try is
-        // kept with probability (1 − F̄_ext)/t(normal), above 0.8 for η ≤ 3, so 64 tries all fail
-        // (and the last is kept untested) with probability below 10⁻⁴⁴.
-        let t_max = self.coat.transmittance(1.0);
-        let mut wi = cosine_hemisphere(n_out, s.uniform_f32(), s.uniform_f32());
-        for _ in 0..64 {
-            if s.uniform() * t_max < self.coat.transmittance(wi.dot(n_out) as f64) {
-                break;
+        let wi = if s.uniform() < p_s {
+            let Some((ggx, _)) = &self.coat.rough else {
+                let factor = Lanes::splat(1.0 - t_o);
+                return Some(Sample {
+                    wi: reflect(-wo, n),
+                    lobe: Lobe::SpecularReflection,
+                    factor,
+                    lobe_pdf: p_s,
+                    pdf: 0.0,
+                });
+            };
+            let frame = Frame::new(n_out, Vec3A::ZERO);
+            let o = frame.to_local(wo);
+            let m = ggx.sample_visible(o, [s.uniform_f32(), s.uniform_f32()]);
+            let i = (2.0 * o.dot(m) * m - o).normalize();
+            if !(i.z > 0.0) {
+                return None;
             }
-            wi = cosine_hemisphere(n_out, s.uniform_f32(), s.uniform_f32());
-        }
+            frame.to_world(i)
+        } else {
+            // Cosine-weighted, kept with probability t_i / t_max: density ∝ t_i cosθ_i. A try is
+            // kept with probability (1 − F̄_ext)/t_max, above 0.8 for η ≤ 3, so 64 tries all fail
+            // (and the last is kept untested) with probability below 10⁻⁴⁴.
+            let mut wi = cosine_hemisphere(n_out, s.uniform_f32(), s.uniform_f32());
+            for _ in 0..64 {
+                if s.uniform() * self.coat.t_max < self.coat.transmittance(wi.dot(n_out) as f64) {
+                    break;
+                }
+                wi = cosine_hemisphere(n_out, s.uniform_f32(), s.uniform_f32());
+            }
+            wi
+        };
         let pdf = self.pdf(wo, wi, n);
         if !(pdf > 0.0) {
             return None;
+        }
+        if self.is_rough() {
+            // Two overlapping lobes: the whole f over the mixture density.
+            let factor = self.weight(Lobe::GlossyReflection, wo, wi, n);
+            return Some(Sample { wi, lobe: Lobe::GlossyReflection, factor, lobe_pdf: 1.0, pdf });
         }
         // f cos / (t_i cos/(π(1 − F̄_ext))) = t_o A(ρ).
         let factor = Lanes(self.albedo.0.map(|a| t_o * a));

@@ -304,7 +304,7 @@ impl Kernel<'_> {
                         }
                         if HERO {
                             let k = media::transmittance::<true, 4>(alpha, &hero.lambda, t);
-                            hero.event::<EXPECTED>(|i| (k.0[i], k.0[i]));
+                            hero.event::<EXPECTED>(|i| (k.0[i], k.0[i], k.0[i]));
                         }
                     }
                 }
@@ -387,8 +387,8 @@ impl Kernel<'_> {
                 }
                 let new_dir = sampled.wi;
                 if let Some(hb) = &hero_bsdf {
-                    let (factor, albedo) = hb.event_terms(sampled.lobe, wo, new_dir, Mode::Importance);
-                    hero.event::<EXPECTED>(|k| (factor.0[k], albedo.0[k]));
+                    let e = hb.event_terms(sampled.lobe, wo, new_dir, Mode::Importance);
+                    hero.event::<EXPECTED>(|k| (e.factor.0[k], e.albedo.0[k], e.analog.0[k]));
                 }
                 if scatterings == max_bounces {
                     out.truncated += weight;
@@ -492,18 +492,20 @@ impl Hero {
         }
     }
 
-    /// One event whose throughput factor and albedo at λₖ are `at(k)`.
+    /// One event whose throughput factor, albedo and analog probability at λₖ are `at(k)`
+    /// (`Bsdf::event_terms`).
     #[inline]
-    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(usize) -> (f64, f64)) {
+    fn event<const EXPECTED: bool>(&mut self, at: impl Fn(usize) -> (f64, f64, f64)) {
         for k in 0..4 {
-            let (factor, albedo) = at(k);
+            let (factor, albedo, analog) = at(k);
             self.throughput[k] *= factor;
             if EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT {
                 self.probability[k] *= if albedo > 0.0 { factor / albedo } else { 0.0 };
                 self.technique_weight[k] *= albedo;
             } else {
-                // Survival with probability = albedo, then the lobe with factor/albedo.
-                self.probability[k] *= factor;
+                // Survival with probability = albedo, then the lobe with factor/albedo: `analog`
+                // (= factor where the model samples exactly).
+                self.probability[k] *= analog;
             }
         }
     }

@@ -1184,13 +1184,8 @@ impl<'s> Loader<'s> {
                         Ok(x)
                     })?
                     .unwrap_or(1.5);
-                if self.roughness(t)? > 0.0 {
-                    return Err(t.err_at(
-                        "roughness",
-                        "a rough plastic coat is not built yet: only roughness = 0 (a smooth coat) is accepted",
-                    ));
-                }
-                Ok(Material::Plastic { diffuse_reflectance, ior })
+                let roughness = self.roughness(t)?;
+                Ok(Material::Plastic { diffuse_reflectance, ior, roughness })
             }
             "dielectric" => {
                 t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness"])?;

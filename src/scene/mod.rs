@@ -53,11 +53,12 @@ pub enum Material {
         specular_reflectance: Spectrum,
         roughness: f64,
     },
-    /// A diffuse base of albedo `diffuse_reflectance` under a smooth dielectric coat of index
-    /// `ior` (against 1 outside).
+    /// A diffuse base of albedo `diffuse_reflectance` under a dielectric coat of index `ior`
+    /// (against 1 outside), smooth or rough (GGX `roughness` α > 0).
     Plastic {
         diffuse_reflectance: Spectrum,
         ior: f64,
+        roughness: f64,
     },
     /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
     /// rough (GGX `roughness` α > 0).
@@ -325,8 +326,12 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.specular_reflection |= positive(reflectance);
                 fx.spectral |= varies(reflectance);
             }
-            Material::Plastic { diffuse_reflectance, .. } => {
-                fx.specular_reflection = true;
+            Material::Plastic { diffuse_reflectance, roughness, .. } => {
+                if *roughness > 0.0 {
+                    fx.glossy_reflection = true;
+                } else {
+                    fx.specular_reflection = true;
+                }
                 fx.diffuse_reflection |= positive(diffuse_reflectance);
                 fx.spectral |= varies(diffuse_reflectance);
             }

@@ -33,7 +33,7 @@ enum Kind {
 }
 
 #[derive(Clone, Copy, Debug)]
-struct Vertex {
+struct Vertex<'a> {
     kind: Kind,
     p: Vec3A,
     err: Vec3A,
@@ -48,7 +48,7 @@ struct Vertex {
     pdf_rev: f64,
     delta: bool,
     /// The BSDF of a connectible vertex (None for specular and absorbing ones).
-    bsdf: Option<Bsdf>,
+    bsdf: Option<Bsdf<'a>>,
     /// A light vertex's emission axis.
     axis: Vec3A,
     /// The absorbing or clear dielectric a surface vertex was reached through (None outside any).
@@ -57,7 +57,7 @@ struct Vertex {
     on_dielectric: bool,
 }
 
-impl Vertex {
+impl Vertex<'_> {
     fn end(&self) -> RayEnd {
         RayEnd { p: self.p, err: self.err, n: self.n, prim: self.prim }
     }
@@ -85,9 +85,9 @@ impl Vertex {
 
 /// Buffers one batch reuses for every sample.
 #[derive(Default)]
-pub struct Scratch {
-    light: Vec<Vertex>,
-    camera: Vec<Vertex>,
+pub struct Scratch<'a> {
+    light: Vec<Vertex<'a>>,
+    camera: Vec<Vertex<'a>>,
     splats: Vec<(usize, LaneXyz)>,
 }
 
@@ -116,12 +116,12 @@ fn remap0(f: f64) -> f64 {
 
 impl ImageKernel<'_> {
     /// One BDPT sample of `pixel`: its own-pixel XYZ; t = 1 splats go to `film`.
-    pub(super) fn bdpt_sample<const SPECTRAL: bool, const DIELECTRIC: bool>(
-        &self,
+    pub(super) fn bdpt_sample<'s, const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &'s self,
         pixel: usize,
         s: &mut Sampler,
         counters: &mut Counters,
-        scratch: &mut Scratch,
+        scratch: &mut Scratch<'s>,
         film: &mut FilmBatch,
     ) -> Vec3A {
         let range = self.scene.simulation.wavelength_range_nm;
@@ -163,11 +163,11 @@ impl ImageKernel<'_> {
         acc.resolve::<SPECTRAL>(&wl)
     }
 
-    fn light_subpath<const SPECTRAL: bool, const DIELECTRIC: bool>(
-        &self,
+    fn light_subpath<'s, const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &'s self,
         wl: &mut Wavelengths,
         s: &mut Sampler,
-        path: &mut Vec<Vertex>,
+        path: &mut Vec<Vertex<'s>>,
         counters: &mut Counters,
     ) -> usize {
         path.clear();
@@ -209,12 +209,12 @@ impl ImageKernel<'_> {
         light
     }
 
-    fn camera_subpath<const SPECTRAL: bool, const DIELECTRIC: bool>(
-        &self,
+    fn camera_subpath<'s, const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &'s self,
         pixel: usize,
         wl: &mut Wavelengths,
         s: &mut Sampler,
-        path: &mut Vec<Vertex>,
+        path: &mut Vec<Vertex<'s>>,
         counters: &mut Counters,
     ) {
         path.clear();
@@ -243,10 +243,10 @@ impl ImageKernel<'_> {
     /// absorbed or has `max_len` vertices, recording each vertex's forward density and its predecessor's
     /// reverse density.
     #[allow(clippy::too_many_arguments)]
-    fn random_walk<const SPECTRAL: bool, const DIELECTRIC: bool>(
-        &self,
+    fn random_walk<'s, const SPECTRAL: bool, const DIELECTRIC: bool>(
+        &'s self,
         mode: Mode,
-        path: &mut Vec<Vertex>,
+        path: &mut Vec<Vertex<'s>>,
         mut origin: Vec3A,
         mut dir: Vec3A,
         mut skip: u32,
