@@ -428,6 +428,155 @@ fn cauchy_ior_not_positive() {
     );
 }
 
+/// `BASE` with its material a dielectric whose index is `ior` (`ior = ...` or `outside_ior = ...`).
+fn dielectric_base(ior: &str) -> String {
+    edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", &format!("type = \"dielectric\"\n{ior}"))
+}
+
+#[test]
+fn unknown_glass_lists_the_bundled_ones() {
+    let toml = dielectric_base("ior = \"N-BK7\"");
+    expect_bad(
+        "glass-unknown",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "ior"), "materials.white.ior"),
+            "unknown glass \"N-BK7\"; bundled glasses: \"BK7\", \"BAF10\", \"FK51A\", \"LASF9\", \"SF5\", \"SF10\", \
+             \"SF11\", \"fused_silica\", \"PMMA\", \"polycarbonate\", \"water\"",
+        ],
+    );
+}
+
+#[test]
+fn glass_whose_table_or_formula_misses_part_of_the_range() {
+    // SF10's table starts at 380 nm, the default range at 360 nm; on the outside as well.
+    let toml = dielectric_base("outside_ior = \"SF10\"");
+    expect_bad(
+        "glass-range-table",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "outside_ior"), "materials.white.outside_ior"),
+            "the table of SF10 covers 380 to 910 nm, but the simulation's wavelength_range_nm is [360, 830]",
+        ],
+    );
+    // BK7's table ends at 916 nm.
+    let toml = format!("[simulation]\nwavelength_range_nm = [400, 1000]\n{}", dielectric_base("ior = \"BK7\""));
+    expect_bad(
+        "glass-range-table-long",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "ior"), "materials.white.ior"), "the table of BK7 covers 300 to 916 nm"],
+    );
+    // Sultanova et al. measured PMMA from 436.8 nm.
+    let toml = dielectric_base("ior = \"PMMA\"");
+    expect_bad(
+        "glass-range-formula",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "ior"), "materials.white.ior"), "the dispersion formula of PMMA covers 436.8 to 1052 nm"],
+    );
+}
+
+#[test]
+fn sellmeier_pole_inside_the_range() {
+    // C = 0.36 µm²: a pole at 600 nm.
+    let toml = dielectric_base("ior = { sellmeier = { B = [1.0, 0.2], C = [0.01, 0.36] } }");
+    expect_bad(
+        "sellmeier-pole",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "ior"), "materials.white.ior.sellmeier.C[1]"),
+            "C = 0.36 µm² puts a pole of n² (λ² = C, at 600.0 nm) inside the simulated wavelength_range_nm [360, 830]",
+        ],
+    );
+}
+
+#[test]
+fn sellmeier_b_and_c_of_unequal_length() {
+    let toml = dielectric_base("ior = { sellmeier = { B = [1.0, 0.2], C = [0.01] } }");
+    expect_bad(
+        "sellmeier-lengths",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "ior"), "materials.white.ior.sellmeier"),
+            "B and C must have one entry per Sellmeier term, the same number each; found 2 B and 1 C",
+        ],
+    );
+}
+
+#[test]
+fn sellmeier_negative_c() {
+    let toml = dielectric_base("ior = { sellmeier = { B = [1.0], C = [-0.01] } }");
+    expect_bad(
+        "sellmeier-negative-c",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "ior"), "materials.white.ior.sellmeier.C[0]"),
+            "C (a resonance wavelength squared, in µm²) must not be negative, found -0.01",
+        ],
+    );
+}
+
+#[test]
+fn sellmeier_malformed_terms() {
+    // No terms, too many terms, a non-finite one, a missing array, a stray key.
+    let seven = "[1, 1, 1, 1, 1, 1, 1]";
+    let seven = format!("{{ B = {seven}, C = {seven} }}");
+    let cases: &[(&str, &str, &str, &str)] = &[
+        ("sellmeier-empty", "{ B = [], C = [] }", "sellmeier.B", "expected 1 to 6 Sellmeier terms, found 0"),
+        ("sellmeier-seven", &seven, "sellmeier.B", "expected 1 to 6 Sellmeier terms, found 7"),
+        ("sellmeier-inf", "{ B = [inf], C = [0.01] }", "sellmeier.B[0]", "inf is not a finite number"),
+        ("sellmeier-no-c", "{ B = [1.0] }", "sellmeier.C", "missing required key `C`"),
+        (
+            "sellmeier-stray",
+            "{ B = [1.0], C = [0.01], D = [1] }",
+            "sellmeier.D",
+            "unknown key `D`; allowed keys here: B, C",
+        ),
+    ];
+    for &(name, terms, key, message) in cases {
+        let toml = dielectric_base(&format!("ior = {{ sellmeier = {terms} }}"));
+        expect_bad(name, &toml, &[], &[&at(line_of(&toml, "ior"), &format!("materials.white.ior.{key}")), message]);
+    }
+}
+
+#[test]
+fn sellmeier_index_squared_not_positive() {
+    // B = −3 with a far-UV resonance: n² ≈ 1 − 3 < 0 across the range.
+    let toml = dielectric_base("ior = { sellmeier = { B = [-3.0], C = [0.01] } }");
+    expect_bad(
+        "sellmeier-negative-n2",
+        &toml,
+        &[],
+        &[
+            &at(line_of(&toml, "ior"), "materials.white.ior.sellmeier"),
+            "n² = 1 + Σ Bλ²/(λ² − C) must be positive and finite over the simulated wavelength_range_nm [360, 830]; at \
+             360 nm it is",
+        ],
+    );
+}
+
+#[test]
+fn glass_names_and_sellmeier_belong_to_dielectrics_only() {
+    // A conductor's `eta` is not a glass.
+    let toml = edit(
+        BASE,
+        "type = \"lambertian\"\nreflectance = 0.5",
+        "type = \"conductor\"\neta = { sellmeier = { B = [1.0], C = [0.01] } }\nk = 1",
+    );
+    expect_bad(
+        "sellmeier-conductor",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "eta"), "materials.white.eta.sellmeier"), "unknown key `sellmeier`"],
+    );
+}
+
 #[test]
 fn negative_power() {
     let toml = edit(BASE, "power_w = 10", "power_w = -10");

@@ -10,8 +10,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         (
             "cornell_glossy",
             "spectral",
-            "spectral, diffuse_reflection, specular_reflection, glossy_reflection, glossy_transmission, refraction, \
-             camera",
+            "spectral, diffuse_reflection, glossy_reflection, glossy_transmission, refraction, camera",
         ),
         ("furnace", "grey", "diffuse_reflection"),
         ("parallel_plates", "grey", ""),

@@ -1191,7 +1191,7 @@ impl<'s> Loader<'s> {
                 t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness"])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
                     let s = t.with(key, |n| {
-                        let s = self.spectrum(n, SpectrumUse::Ior)?;
+                        let s = self.spectrum(n, SpectrumUse::DielectricIor { range })?;
                         let (lo, _) = s.min_max_over(range);
                         if !(lo > 0.0) {
                             return Err(n.err(format!("{key} must be positive at every wavelength; found {lo}")));
@@ -1407,7 +1407,8 @@ impl<'s> Loader<'s> {
         Ok(Camera { position, look_at, up, fov_deg, resolution })
     }
 
-    /// A spectrum: a number, `{ blackbody_k }`, `{ file }`, `{ table }`, or (ior only) `{ cauchy }`.
+    /// A spectrum: a number, `{ blackbody_k }`, `{ file }`, `{ table }`, or (ior only) `{ cauchy }`;
+    /// a dielectric's index also a bundled glass's name or `{ sellmeier }`.
     fn spectrum(&self, n: Node<'s, '_>, usage: SpectrumUse) -> R<Spectrum> {
         if n.is_number() {
             let v = n.f64()?;
@@ -1416,7 +1417,17 @@ impl<'s> Loader<'s> {
             }
             return Ok(Spectrum::Constant(v));
         }
+        if let (SpectrumUse::DielectricIor { range }, Ok(name)) = (usage, n.str()) {
+            return named_glass(n, name, range);
+        }
         if !n.is_table() {
+            if let SpectrumUse::DielectricIor { .. } = usage {
+                return Err(n.err(format!(
+                    "expected a number, a bundled glass ({}) or a spectrum table: {{ file = \"x.csv\" }}, {{ table = \
+                     [[nm, n], ...] }}, {{ cauchy = [A, B_um2] }}, {{ sellmeier = {{ B = [...], C = [...] }} }}",
+                    glass_names()
+                )));
+            }
             return Err(n.err("expected a number or a spectrum table: { blackbody_k = T }, { file = \"x.csv\" }, { table = [[nm, value], ...] }"));
         }
         let t = n.table()?;
@@ -1424,6 +1435,7 @@ impl<'s> Loader<'s> {
         let allowed: &[&str] = match usage {
             SpectrumUse::Emission => &["blackbody_k", "file", "table"],
             SpectrumUse::Ior => &["file", "table", "cauchy"],
+            SpectrumUse::DielectricIor { .. } => &["file", "table", "cauchy", "sellmeier"],
             SpectrumUse::Fraction | SpectrumUse::NonNegative => &["file", "table"],
         };
         t.allow(allowed)?;
@@ -1448,6 +1460,10 @@ impl<'s> Loader<'s> {
                 }
                 Ok(Spectrum::Cauchy { a: c[0], b_um2: c[1] })
             }),
+            "sellmeier" => {
+                let SpectrumUse::DielectricIor { range } = usage else { unreachable!("allowed for dielectrics only") };
+                t.require("sellmeier", |n| sellmeier(n, range))
+            }
             "table" => t.require("table", |n| {
                 let points = n.each(|row| {
                     let v = row.each(|x| x.f64())?;
@@ -1487,7 +1503,78 @@ enum SpectrumUse {
     Emission,
     Fraction,
     Ior,
+    /// A dielectric's `ior` or `outside_ior`, which may also name a bundled glass or give
+    /// Sellmeier terms, both checked over the simulated wavelength range.
+    DielectricIor {
+        range: (f64, f64),
+    },
     NonNegative,
+}
+
+/// The bundled glasses' names, for messages.
+fn glass_names() -> String {
+    crate::scene::catalog::GLASSES.iter().map(|g| format!("\"{}\"", g.0)).collect::<Vec<_>>().join(", ")
+}
+
+/// `ior = "BK7"`: a bundled glass, whose table or formula must cover the simulated range.
+fn named_glass(n: Node<'_, '_>, name: &str, range: (f64, f64)) -> R<Spectrum> {
+    let (s, cover) = crate::scene::catalog::glass(name)
+        .ok_or_else(|| n.err(format!("unknown glass \"{name}\"; bundled glasses: {}", glass_names())))?;
+    if range.0 < cover.0 || range.1 > cover.1 {
+        let what = if matches!(s, Spectrum::Table(_)) { "table" } else { "dispersion formula" };
+        return Err(n.err(format!(
+            "the {what} of {name} covers {} to {} nm, but the simulation's wavelength_range_nm is [{}, {}]: narrow \
+             the range or give the index as a spectrum (`table`, `file`, `cauchy` or `sellmeier`)",
+            cover.0, cover.1, range.0, range.1
+        )));
+    }
+    Ok(s)
+}
+
+/// `sellmeier = { B = [...], C = [...] }`: n² = 1 + Σ Bᵢλ²/(λ² − Cᵢ), λ in µm, Cᵢ in µm²; 1 to 6
+/// terms, C ≥ 0, no pole λ² = Cᵢ in the simulated range and n² > 0 throughout it.
+fn sellmeier(n: Node<'_, '_>, range: (f64, f64)) -> R<Spectrum> {
+    const MAX_TERMS: usize = 6;
+    let t = n.table()?;
+    t.allow(&["B", "C"])?;
+    let terms_of = |key: &str| {
+        t.require(key, |n| {
+            let v = n.each(|x| {
+                let v = x.f64()?;
+                if key == "C" {
+                    if v < 0.0 {
+                        return Err(x.err(format!(
+                            "C (a resonance wavelength squared, in µm²) must not be negative, found {v}"
+                        )));
+                    }
+                    if let Some(pole) = crate::spectrum::sellmeier_pole_in(v, range) {
+                        return Err(x.err(format!(
+                            "C = {v} µm² puts a pole of n² (λ² = C, at {pole:.1} nm) inside the simulated \
+                             wavelength_range_nm [{}, {}], where the index would be infinite",
+                            range.0, range.1
+                        )));
+                    }
+                }
+                Ok(v)
+            })?;
+            if v.is_empty() || v.len() > MAX_TERMS {
+                return Err(n.err(format!("expected 1 to {MAX_TERMS} Sellmeier terms, found {}", v.len())));
+            }
+            Ok(v)
+        })
+    };
+    let b = terms_of("B")?;
+    let c = terms_of("C")?;
+    if b.len() != c.len() {
+        return Err(t.err(format!(
+            "B and C must have one entry per Sellmeier term, the same number each; found {} B and {} C",
+            b.len(),
+            c.len()
+        )));
+    }
+    let terms: Vec<(f64, f64)> = b.into_iter().zip(c).collect();
+    crate::spectrum::check_sellmeier(&terms, range).map_err(|m| t.err(m))?;
+    Ok(Spectrum::Sellmeier { terms })
 }
 
 fn simplify(s: &mut Spectrum, range: (f64, f64)) {

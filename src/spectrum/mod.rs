@@ -1,5 +1,6 @@
-//! Spectra: constant, tabulated (piecewise linear, zero outside the table), blackbody and
-//! Cauchy dispersion; and the tabulated CDF used to sample a wavelength by inverse transform.
+//! Spectra: constant, tabulated (piecewise linear, zero outside the table), blackbody, and
+//! Cauchy and Sellmeier dispersion; and the tabulated CDF used to sample a wavelength by inverse
+//! transform.
 
 pub mod color;
 pub mod photometry;
@@ -100,6 +101,11 @@ pub enum Spectrum {
         a: f64,
         b_um2: f64,
     },
+    /// Sellmeier's equation n² = 1 + Σ Bᵢλ²/(λ² − Cᵢ), λ in micrometres: the terms (Bᵢ, Cᵢ),
+    /// Cᵢ in µm². The loader checks that n² is positive and finite over the simulated range.
+    Sellmeier {
+        terms: Vec<(f64, f64)>,
+    },
 }
 
 /// A tabulated spectrum. Tables on a uniform grid (most measured data) are looked up in O(1);
@@ -154,6 +160,7 @@ impl Spectrum {
                 let um = lambda_nm * 1e-3;
                 a + b_um2 / (um * um)
             }
+            Spectrum::Sellmeier { terms } => sellmeier_n2(terms, lambda_nm).sqrt(),
         }
     }
 
@@ -169,6 +176,11 @@ impl Spectrum {
                 (covers && all_equal).then_some(first.1)
             }
             Spectrum::Cauchy { a, b_um2 } => (*b_um2 == 0.0).then_some(*a),
+            // Bᵢλ²/(λ² − Cᵢ) is the constant Bᵢ when Cᵢ = 0, and nothing when Bᵢ = 0.
+            Spectrum::Sellmeier { terms } => terms
+                .iter()
+                .all(|&(b, c)| b == 0.0 || c == 0.0)
+                .then(|| (1.0 + terms.iter().map(|t| t.0).sum::<f64>()).sqrt()),
             Spectrum::Blackbody { .. } => None,
         }
     }
@@ -201,7 +213,7 @@ impl Spectrum {
         match self {
             Spectrum::Constant(_) => {}
             Spectrum::Table(Table { points, .. }) => xs.extend(points.iter().map(|p| p.0).filter(|&x| x > a && x < b)),
-            Spectrum::Blackbody { .. } | Spectrum::Cauchy { .. } => {
+            Spectrum::Blackbody { .. } | Spectrum::Cauchy { .. } | Spectrum::Sellmeier { .. } => {
                 let mut x = a.floor() + 1.0;
                 while x < b {
                     xs.push(x);
@@ -225,6 +237,45 @@ impl Spectrum {
     pub fn integral(&self, range: (f64, f64)) -> f64 {
         let xs = self.breakpoints(range);
         xs.windows(2).map(|w| 0.5 * (self.eval(w[0]) + self.eval(w[1])) * (w[1] - w[0])).sum()
+    }
+}
+
+/// n² = 1 + Σ Bᵢλ²/(λ² − Cᵢ) at `lambda_nm` (λ in µm inside the sum; Cᵢ in µm²).
+#[inline]
+pub fn sellmeier_n2(terms: &[(f64, f64)], lambda_nm: f64) -> f64 {
+    let l2 = (lambda_nm * 1e-3) * (lambda_nm * 1e-3);
+    1.0 + terms.iter().map(|&(b, c)| b * l2 / (l2 - c)).sum::<f64>()
+}
+
+/// The wavelength (nm) of the pole λ² = C of a Sellmeier term, if it lies inside `range` (nm).
+pub fn sellmeier_pole_in(c_um2: f64, range: (f64, f64)) -> Option<f64> {
+    let pole_nm = c_um2.sqrt() * 1e3;
+    (c_um2 > 0.0 && pole_nm >= range.0 && pole_nm <= range.1).then_some(pole_nm)
+}
+
+/// Err(why) when Sellmeier terms cannot describe an index over `range` (nm): a pole λ² = Cᵢ
+/// inside it, or n² not positive and finite somewhere in it, checked at the range's ends and at
+/// every whole nanometre between (the wavelengths `breakpoints` gives an analytic spectrum).
+pub fn check_sellmeier(terms: &[(f64, f64)], range: (f64, f64)) -> Result<(), String> {
+    if let Some((i, pole)) = terms.iter().enumerate().find_map(|(i, t)| Some((i, sellmeier_pole_in(t.1, range)?))) {
+        return Err(format!(
+            "term {i} has a pole of n² (λ² = C, λ = {pole:.1} nm) inside the simulated wavelength_range_nm [{}, {}]",
+            range.0, range.1
+        ));
+    }
+    let s = Spectrum::Sellmeier { terms: terms.to_vec() };
+    match s.breakpoints(range).into_iter().find(|&x| {
+        let n2 = sellmeier_n2(terms, x);
+        !(n2 > 0.0 && n2.is_finite())
+    }) {
+        Some(x) => Err(format!(
+            "n² = 1 + Σ Bλ²/(λ² − C) must be positive and finite over the simulated wavelength_range_nm [{}, {}]; \
+             at {x} nm it is {}",
+            range.0,
+            range.1,
+            sellmeier_n2(terms, x)
+        )),
+        None => Ok(()),
     }
 }
 
@@ -441,6 +492,29 @@ mod tests {
             let binary = (sampler.cdf.partition_point(|&c| c <= target).max(1) - 1).min(sampler.xs.len() - 2);
             assert_eq!(sampler.segment(u, target), binary, "u = {u}");
         }
+    }
+
+    #[test]
+    fn sellmeier_evaluates_schotts_n_bk7_and_is_checked_over_a_range() {
+        // Schott N-BK7: n_d = 1.5168 at 587.56 nm.
+        let terms = vec![(1.03961212, 0.00600069867), (0.231792344, 0.0200179144), (1.01046945, 103.560653)];
+        let s = Spectrum::Sellmeier { terms: terms.clone() };
+        assert!((s.eval(587.56) - 1.5168).abs() < 1e-5, "{}", s.eval(587.56));
+        assert_eq!(s.constant_over((360.0, 830.0)), None);
+        assert_eq!(s.breakpoints((400.0, 402.5)), vec![400.0, 401.0, 402.0, 402.5]);
+        let (lo, hi) = s.min_max_over((400.0, 700.0));
+        assert_eq!((lo, hi), (s.eval(700.0), s.eval(400.0)), "normal dispersion: n falls with λ");
+        assert!(check_sellmeier(&terms, (360.0, 830.0)).is_ok());
+        // The pole at √103.56 µm ≈ 10.18 µm, inside a (hypothetical) infrared range.
+        assert!(check_sellmeier(&terms, (9000.0, 11000.0)).unwrap_err().contains("pole"));
+        assert_eq!(sellmeier_pole_in(0.36, (360.0, 830.0)), Some(600.0));
+        assert_eq!(sellmeier_pole_in(0.36, (610.0, 830.0)), None);
+        assert_eq!(sellmeier_pole_in(0.0, (0.0, 830.0)), None, "C = 0 is a constant term, not a pole");
+        assert!(check_sellmeier(&[(-3.0, 0.01)], (360.0, 830.0)).unwrap_err().contains("at 360 nm"));
+        // Terms without dispersion (C = 0, or B = 0) are a constant index.
+        let flat = Spectrum::Sellmeier { terms: vec![(1.25, 0.0), (0.0, 0.3)] };
+        assert_eq!(flat.constant_over((360.0, 830.0)), Some(1.5));
+        assert_eq!(flat.eval(500.0), 1.5);
     }
 
     #[test]
