@@ -42,7 +42,8 @@ pub enum Lobe {
     SpecularReflection,
     /// Refraction through a dielectric.
     SpecularTransmission,
-    /// Microfacet reflection (a rough metal).
+    /// Microfacet reflection (a rough metal, dielectric or plastic coat, with a rough plastic's
+    /// base: its sample is weighted by the whole f).
     GlossyReflection,
     /// Microfacet refraction (a rough dielectric).
     GlossyTransmission,
@@ -85,7 +86,9 @@ pub struct Sample<const N: usize> {
     pub wi: Vec3A,
     pub lobe: Lobe,
     /// The lobe's throughput per lane: f·|cosθ_i| over the lobe's own direction density (ρ, τ,
-    /// a mirror's ρ, Fresnel's R or 1 − R; refraction in radiance mode times (η_i/η_t)²).
+    /// a mirror's ρ, Fresnel's R or 1 − R; refraction in radiance mode times (η_i/η_t)²; a
+    /// microfacet lobe's F·G2/G1-type weight; for overlapping lobes, with `lobe_pdf` 1, the
+    /// whole f·|cosθ_i| over the mixture density).
     pub factor: Lanes<N>,
     /// Probability that this lobe was the one chosen.
     pub lobe_pdf: f64,
