@@ -4,7 +4,7 @@
 # rotating each round), so a shared machine's drift hits them all alike. Reports each
 # configuration's median photons/s per build and, for each later build, the median over rounds
 # of the per-round ratio to the first (above 1: faster than the first).
-# Usage: ROUNDS=7 bash bench/compare_builds.sh <commit> <commit> [<commit> ...]
+# Usage: ROUNDS=7 [CONFIGS=BDPT,glass] bash bench/compare_builds.sh <commit> <commit> [<commit> ...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 rounds=${ROUNDS:-7}
@@ -18,7 +18,7 @@ for rev in "$@"; do
   k=$((k + 1))
 done
 python3 - "$work" "$rounds" "$@" <<'PY'
-import json, subprocess, sys, statistics
+import json, os, subprocess, sys, statistics
 work, rounds, names = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
 builds = list(range(len(names)))
 # scene, photons, flags: the estimator is fixed so no pilot runs (its time is not the loop's).
@@ -30,6 +30,10 @@ configs = [
     ("scenes/furnace.toml", 131_072, ["--estimator", "analog"], "furnace 0.9, analog"),
     ("scenes/glass.toml", 262_144, ["--estimator", "expected"], "glass, light-traced image"),
 ]
+# CONFIGS="BDPT,glass" keeps the configurations whose label contains one of the words.
+only = [w for w in os.environ.get("CONFIGS", "").split(",") if w]
+if only:
+    configs = [c for c in configs if any(w in c[3] for w in only)]
 rate = {(c[3], b): [] for c in configs for b in builds}
 ratio = {(c[3], b): [] for c in configs for b in builds[1:]}
 for r in range(rounds):
