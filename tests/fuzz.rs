@@ -305,6 +305,85 @@ nadir = [0, 0, -1]
 c0 = [1, 0, 0]
 "#,
     ),
+    (
+        "surfaces",
+        r#"[simulation]
+photons = 3000
+integrator = "bdpt"
+wavelength_range_nm = [400, 700]
+
+[camera]
+position = [0.5, 0.5, 3]
+look_at = [0.5, 0.5, 0]
+fov_deg = 50
+resolution = [10, 8]
+
+[materials.alu]
+type = "conductor"
+metal = "Al"
+roughness = 0.2
+
+[materials.gold]
+type = "conductor"
+eta = { table = [[400, 1.5], [700, 0.2]] }
+k = 3.2
+specular_reflectance = 0.9
+
+[materials.satin]
+type = "plastic"
+diffuse_reflectance = { file = "../spectra/tiny.csv" }
+ior = 1.5
+roughness = 0.3
+
+[materials.gloss]
+type = "plastic"
+diffuse_reflectance = 0.8
+
+[materials.frosted]
+type = "dielectric"
+ior = "BK7"
+roughness = 0.1
+
+[materials.crown]
+type = "dielectric"
+ior = { sellmeier = { B = [1.03961212, 0.231792344, 1.01046945], C = [0.00600069867, 0.0200179144, 103.560653] } }
+
+[[surfaces]]
+name = "back"
+material = "satin"
+shape = { type = "quad", corners = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]] }
+
+[[surfaces]]
+name = "floor"
+material = "gloss"
+shape = { type = "quad", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }
+
+[[surfaces]]
+name = "plate"
+material = "alu"
+shape = { type = "disk", center = [0.3, 0.5, 0.5], normal = [1, 0, 0], radius = 0.2, segments = 12 }
+
+[[surfaces]]
+name = "bar"
+material = "gold"
+shape = { type = "box", min = [0.7, 0.0, 0.2], max = [0.9, 0.3, 0.4] }
+
+[[surfaces]]
+name = "ball"
+material = "frosted"
+shape = { type = "sphere", center = [0.5, 0.3, 0.6], radius = 0.15, subdivisions = 2 }
+
+[[surfaces]]
+name = "lens"
+material = "crown"
+shape = { type = "sphere", center = [0.2, 0.2, 0.3], radius = 0.08, subdivisions = 1 }
+
+[[lights]]
+name = "panel"
+shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
+power_w = 5
+"#,
+    ),
 ];
 
 /// The bundled scenes, with cameras shrunk to a few pixels.
@@ -487,6 +566,15 @@ const TOML_VALUES: &[&str] = &[
     "\"absorber\"",
     "\"mirror\"",
     "\"dielectric\"",
+    "\"conductor\"",
+    "\"plastic\"",
+    "\"Al\"",
+    "\"BK7\"",
+    "\"water\"",
+    "\"LASF9\"",
+    "{ sellmeier = { B = [1.0], C = [0.16] } }",
+    "{ sellmeier = { B = [1e300], C = [1e-300] } }",
+    "{ sellmeier = { B = [], C = [] } }",
     "\"farfield\"",
 ];
 
@@ -500,6 +588,17 @@ const TOML_KEYS: &[&str] = &[
     "map = { resolution = [1, 1] }",
     "transmittance = 0.5",
     "transmittance = 1",
+    "roughness = 1e-300",
+    "roughness = 1",
+    "roughness = 0.5",
+    "roughness = [0.1, 0.3]",
+    "metal = \"Au\"",
+    "metal = \"Fe\"",
+    "k = 1e300",
+    "eta = 1e-300",
+    "specular_reflectance = 0",
+    "diffuse_reflectance = 1",
+    "ior = \"SF10\"",
     "reflectance = 1",
     "reflectance = 0",
     "absorption_per_m = 1e300",

@@ -620,3 +620,21 @@ fn the_reference_names_every_flag_and_every_scene_key() {
     assert!(keys > 40, "found only {keys} keys: the loader's key lists were not read");
     assert!(missing.is_empty(), "docs/reference.md lacks the keys {missing:?}");
 }
+
+#[test]
+fn a_mapped_surface_named_beyond_latin1_writes_its_maps() {
+    // EXR header text holds Latin-1 only: the layer takes the name's file stem instead of
+    // panicking (found by tests/fuzz.rs with a CJK name on the office floor).
+    let toml = common::BASE
+        .replace("name = \"floor\"", "name = \"床面漢字\"")
+        .replace("material = \"white\"\n", "material = \"white\"\nmap = { resolution = [2, 2] }\n");
+    let (d, scene) = scene_file("cjk-map", &(toml + "\n[simulation]\nphotons = 2000\n"));
+    let out = d.join("out");
+    let o = photon(&["run", s(&scene), "--out", s(&out), "--quiet"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        out.join("maps").join("____.exr").is_file(),
+        "{:?}",
+        std::fs::read_dir(out.join("maps")).map(|d| d.count())
+    );
+}

@@ -123,6 +123,13 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// For every surface of `scene`, in surface order: once per run (a rough coat's tables take
+    /// a few tenths of a second).
+    pub fn for_scene(scene: &crate::scene::Scene) -> Vec<Prepared> {
+        let range = scene.simulation.wavelength_range_nm;
+        (0..scene.surfaces.len()).map(|s| Prepared::of(scene.material_of(s), range)).collect()
+    }
+
     /// For `material` over the simulated wavelength range `range` (nm).
     pub fn of(material: &Material, range: (f64, f64)) -> Self {
         match material {

@@ -75,6 +75,8 @@ pub struct Kernel<'a> {
     pub options: TransportOptions,
     /// Set when the run has stopped: a batch in hand then ends early, and is discarded.
     pub cancel: Option<&'a AtomicBool>,
+    /// Per surface, its material's run-wide constants (`Prepared::for_scene`).
+    pub prepared: &'a [Prepared],
 }
 
 /// Under this seed, test builds panic in batch 3 (to test that a failed batch fails the run).
@@ -208,7 +210,7 @@ impl Kernel<'_> {
         let max_bounces = scene.simulation.max_bounces;
         let range = scene.simulation.wavelength_range_nm;
         let materials: Vec<&Material> = (0..n_surfaces).map(|s| scene.material_of(s)).collect();
-        let prepared: Vec<Prepared> = materials.iter().map(|m| Prepared::of(m, range)).collect();
+        let prepared = self.prepared;
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
         let mut out = Tallies::for_scene(scene);

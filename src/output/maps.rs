@@ -69,7 +69,11 @@ pub fn write_exr(dir: &std::path::Path, m: &MapEstimate) -> Result<std::path::Pa
         AnyChannel::new("illuminance_lx", FlatSamples::F32(flip(&ev, |x| x.0))),
         AnyChannel::new("illuminance_lx_stderr", FlatSamples::F32(flip(&ev, |x| x.1))),
     ]));
-    let layer = Layer::new((nu, nv), LayerAttributes::named(m.surface.as_str()), Encoding::FAST_LOSSLESS, channels);
+    // An EXR name holds Latin-1 only: a name beyond it is written as its file stem (ASCII).
+    let layer_name = exr::meta::attribute::Text::new_or_none(&m.surface)
+        .or_else(|| exr::meta::attribute::Text::new_or_none(crate::scene::map::file_stem(&m.surface)))
+        .unwrap_or_default();
+    let layer = Layer::new((nu, nv), LayerAttributes::named(layer_name), Encoding::FAST_LOSSLESS, channels);
     let mut bytes = std::io::Cursor::new(Vec::new());
     let name = file_name(&m.surface, "exr");
     Image::from_layer(layer)

@@ -189,8 +189,11 @@ pub fn simulate_observed(
     let seed = scene.simulation.seed;
     let camera = scene.camera.as_ref().filter(|_| scene.effects.camera).map(CameraModel::new);
     let integrator = scene.simulation.integrator;
+    let prepared = crate::bsdf::Prepared::for_scene(scene);
     let image_kernel = match (&camera, integrator) {
-        (Some(cam), Integrator::Path | Integrator::Bdpt) => Some(ImageKernel::new(scene, &emitter, cam, integrator)),
+        (Some(cam), Integrator::Path | Integrator::Bdpt) => {
+            Some(ImageKernel::new(scene, &emitter, cam, integrator, &prepared))
+        }
         _ => None,
     };
     let light_camera = camera.as_ref().filter(|_| integrator == Integrator::Light);
@@ -203,7 +206,7 @@ pub fn simulate_observed(
             // not depend on that choice.
             let pilot_camera = scene.camera.as_ref().map(CameraModel::new);
             let pilot = pool.install(|| {
-                choose_estimator(scene, &emitter, pilot_camera.as_ref(), opts.transport, rel_error_surfaces)
+                choose_estimator(scene, &emitter, &prepared, pilot_camera.as_ref(), opts.transport, rel_error_surfaces)
             });
             (TransportOptions { estimator: pilot.chosen, ..opts.transport }, Some(pilot))
         }
@@ -217,6 +220,7 @@ pub fn simulate_observed(
         image: image_kernel.as_ref(),
         options: transport,
         cancel: Some(&quit),
+        prepared: &prepared,
     };
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
@@ -442,6 +446,7 @@ pub struct EstimatorPilot {
 pub fn choose_estimator(
     scene: &Scene,
     emitter: &Emitter,
+    prepared: &[crate::bsdf::Prepared],
     camera: Option<&CameraModel>,
     transport: TransportOptions,
     surfaces: &[usize],
@@ -450,7 +455,7 @@ pub fn choose_estimator(
     let part = PILOT_ROUND / PILOT_PARTS;
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
-        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None };
+        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared };
         let mut total = Tallies::for_scene(scene);
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;

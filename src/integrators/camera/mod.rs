@@ -122,7 +122,7 @@ pub struct ImageKernel<'a> {
     pub integrator: Integrator,
     materials: Vec<&'a Material>,
     /// Per surface: its material's constants worked out once (`bsdf::Prepared`).
-    prepared: Vec<Prepared>,
+    prepared: &'a [Prepared],
     /// Per surface: the light it belongs to, and whether it is a dispersive dielectric.
     surface_light: Vec<Option<usize>>,
     dispersive: Vec<bool>,
@@ -173,7 +173,13 @@ struct Arrival<'m> {
 }
 
 impl<'a> ImageKernel<'a> {
-    pub fn new(scene: &'a Scene, emitter: &'a Emitter, camera: &'a CameraModel, integrator: Integrator) -> Self {
+    pub fn new(
+        scene: &'a Scene,
+        emitter: &'a Emitter,
+        camera: &'a CameraModel,
+        integrator: Integrator,
+        prepared: &'a [Prepared],
+    ) -> Self {
         let range = scene.simulation.wavelength_range_nm;
         let materials: Vec<&Material> = (0..scene.surfaces.len()).map(|s| scene.material_of(s)).collect();
         let dispersive = materials
@@ -192,7 +198,7 @@ impl<'a> ImageKernel<'a> {
             camera,
             integrator,
             point_views,
-            prepared: materials.iter().map(|m| Prepared::of(m, range)).collect(),
+            prepared,
             materials,
             surface_light: scene.surfaces.iter().map(|s| s.light).collect(),
             dispersive,
