@@ -371,10 +371,11 @@ impl Kernel<'_> {
                     break;
                 };
                 if !bsdf.samples_exactly() {
-                    // What the albedo did not account for, t = (f|cos|/pdf)/albedo (≤ 1 for every
-                    // model, by its sampling), is a second absorption: the share 1 − t stays here
-                    // (expected value), or the photon survives with probability t. Were t above 1
-                    // the weight would grow, booked as negative absorption: the ledger stays exact.
+                    // What the albedo did not account for, t = (f|cos|/pdf)/albedo, is a second
+                    // absorption: the share 1 − t stays here (expected value), or the photon survives
+                    // with probability t. t ≤ 1 for rough metals, glass and smooth plastic by their
+                    // sampling; a rough plastic's coat lobe can exceed 1, and the weight then grows,
+                    // booked as negative absorption, so the ledger stays exact.
                     let t = sampled.weight().0[0] / a;
                     if expected_here || t >= 1.0 {
                         absorb(surface, weight * (1.0 - t), lambda, &mut absorbed, &mut spectra_absorbed);
