@@ -89,17 +89,6 @@ impl<const N: usize> Conductor<N> {
         Lanes(std::array::from_fn(|i| fresnel_conductor(cos, self.eta.0[i], self.k.0[i]) * self.tint.0[i]))
     }
 
-    /// The local frame on the side of `wo`.
-    #[inline]
-    fn frame(n: Vec3A, wo: Vec3A) -> Frame {
-        let f = Frame::new(n, Vec3A::ZERO);
-        if wo.dot(n) >= 0.0 {
-            f
-        } else {
-            f.flipped()
-        }
-    }
-
     /// A smooth metal reflects F(cosθ_o)·tint; a rough one's albedo is not known in closed form,
     /// and its sample's weight carries the loss instead (see `samples_exactly`).
     #[inline]
@@ -113,7 +102,7 @@ impl<const N: usize> Conductor<N> {
     #[inline]
     pub fn f(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Factored<N> {
         let Some(ggx) = self.ggx else { return Factored::ZERO };
-        let frame = Self::frame(n, wo);
+        let frame = Frame::facing(n, wo);
         let (o, i) = (frame.to_local(wo), frame.to_local(wi));
         if !(o.z > 0.0 && i.z > 0.0) {
             return Factored::ZERO;
@@ -126,7 +115,7 @@ impl<const N: usize> Conductor<N> {
     #[inline]
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
         let Some(ggx) = self.ggx else { return 0.0 };
-        let frame = Self::frame(n, wo);
+        let frame = Frame::facing(n, wo);
         let (o, i) = (frame.to_local(wo), frame.to_local(wi));
         if !(o.z > 0.0 && i.z > 0.0) {
             return 0.0;
@@ -148,7 +137,7 @@ impl<const N: usize> Conductor<N> {
                 pdf: 0.0,
             });
         };
-        let frame = Self::frame(n, wo);
+        let frame = Frame::facing(n, wo);
         let o = frame.to_local(wo);
         if !(o.z > 0.0) {
             return None;
@@ -178,7 +167,7 @@ impl<const N: usize> Conductor<N> {
                 (r, r)
             }
             Some(ggx) => {
-                let frame = Self::frame(n, wo);
+                let frame = Frame::facing(n, wo);
                 let (o, i) = (frame.to_local(wo), frame.to_local(wi));
                 let m = (o + i).normalize();
                 let t = self.reflectance(o.dot(m) as f64) * (ggx.g2(o, i) / ggx.g1(o));

@@ -36,6 +36,18 @@ impl Frame {
         self.t * w.x + self.b * w.y + self.n * w.z
     }
 
+    /// The frame around `n` turned to the side `w` lies on (its z toward `w`): microfacet models
+    /// reflect alike from both sides.
+    #[inline]
+    pub fn facing(n: Vec3A, w: Vec3A) -> Self {
+        let f = Frame::new(n, Vec3A::ZERO);
+        if w.dot(n) >= 0.0 {
+            f
+        } else {
+            f.flipped()
+        }
+    }
+
     /// The same frame seen from the other side (z → −z, keeping it right-handed).
     #[inline]
     pub fn flipped(&self) -> Self {

@@ -208,8 +208,7 @@ impl<'a, const N: usize> Plastic<'a, N> {
     /// (visible normals, reflected); zero below the surface.
     #[inline]
     fn coat_lobe(&self, ggx: &Ggx, wo: Vec3A, wi: Vec3A, n: Vec3A) -> (f64, f64) {
-        let frame = Frame::new(n, Vec3A::ZERO);
-        let frame = if wo.dot(n) >= 0.0 { frame } else { frame.flipped() };
+        let frame = Frame::facing(n, wo);
         let (o, i) = (frame.to_local(wo), frame.to_local(wi));
         if !(o.z > 0.0 && i.z > 0.0) {
             return (0.0, 0.0);
@@ -254,6 +253,13 @@ impl<'a, const N: usize> Plastic<'a, N> {
         }
     }
 
+    /// A rough plastic's sample weight f|cosθ_i|/pdf per lane, given the mixture density `pdf` > 0.
+    #[inline]
+    fn mixture_weight(&self, wo: Vec3A, wi: Vec3A, n: Vec3A, pdf: f64) -> Lanes<N> {
+        let value = self.f(wo, wi, n).value() * (wi.dot(n).abs() as f64);
+        Lanes(value.0.map(|v| v / pdf))
+    }
+
     /// A sample's weight per lane in `lobe` toward `wi`. The lanes share the sampling, so this is
     /// also each lane's factor for the hero weights.
     #[inline]
@@ -261,8 +267,7 @@ impl<'a, const N: usize> Plastic<'a, N> {
         let (p_s, t_o) = self.p_specular(wo.dot(n).abs() as f64);
         if self.is_rough() {
             let pdf = self.pdf(wo, wi, n);
-            let value = self.f(wo, wi, n).value() * (wi.dot(n).abs() as f64);
-            return if pdf > 0.0 { Lanes(value.0.map(|v| v / pdf)) } else { Lanes::ZERO };
+            return if pdf > 0.0 { self.mixture_weight(wo, wi, n, pdf) } else { Lanes::ZERO };
         }
         match lobe {
             Lobe::SpecularReflection => Lanes::splat((1.0 - t_o) / p_s),
@@ -287,7 +292,7 @@ impl<'a, const N: usize> Plastic<'a, N> {
                     pdf: 0.0,
                 });
             };
-            let frame = Frame::new(n_out, Vec3A::ZERO);
+            let frame = Frame::facing(n, wo);
             let o = frame.to_local(wo);
             let m = ggx.sample_visible(o, [s.uniform_f32(), s.uniform_f32()]);
             let i = (2.0 * o.dot(m) * m - o).normalize();
@@ -314,7 +319,7 @@ impl<'a, const N: usize> Plastic<'a, N> {
         }
         if self.is_rough() {
             // Two overlapping lobes: the whole f over the mixture density.
-            let factor = self.weight(Lobe::GlossyReflection, wo, wi, n);
+            let factor = self.mixture_weight(wo, wi, n, pdf);
             return Some(Sample { wi, lobe: Lobe::GlossyReflection, factor, lobe_pdf: 1.0, pdf });
         }
         // f cos / (t_i cos/(π(1 − F̄_ext))) = t_o A(ρ).

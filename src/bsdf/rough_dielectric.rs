@@ -36,8 +36,7 @@ struct Local {
 impl RoughDielectric {
     #[inline]
     fn local(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Local {
-        let frame = Frame::new(n, Vec3A::ZERO);
-        let frame = if wo.dot(n) >= 0.0 { frame } else { frame.flipped() };
+        let frame = Frame::facing(n, wo);
         let (eta_o, eta_t) = etas(self.ior, self.outside_ior, -wo, n);
         Local { o: frame.to_local(wo), i: frame.to_local(wi), eta_o, eta_t }
     }
@@ -109,8 +108,7 @@ impl RoughDielectric {
 
     #[inline]
     pub fn sample<const N: usize>(&self, wo: Vec3A, n: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
-        let frame = Frame::new(n, Vec3A::ZERO);
-        let frame = if wo.dot(n) >= 0.0 { frame } else { frame.flipped() };
+        let frame = Frame::facing(n, wo);
         let (eta_o, eta_t) = etas(self.ior, self.outside_ior, -wo, n);
         let o = frame.to_local(wo);
         if !(o.z > 0.0) {
