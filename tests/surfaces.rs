@@ -404,6 +404,9 @@ fn rough_plastic_never_gains_energy_and_its_samples_weigh_what_its_bsdf_integrat
             seed += 1;
             let (mc, se, _) = sampled_albedo(&b, wo, 200_000, seed);
             println!("ρ = {rho}, α = {alpha}, θ = {deg}°: E = {mc:.5} ± {se:.5} (sampled), {fine:.5} ± {quad_err:.5}");
+            // The base's transmittance comes from a 64-point table interpolated linearly, so the
+            // albedo may exceed the exact model's by the table's error (≈ 1e-4); 1e-3 allows that
+            // and still fails a gain of a tenth of a per cent.
             assert!(fine <= 1.0 + 1e-3, "ρ = {rho}, α = {alpha}, θ = {deg}°: albedo {fine} > 1");
             assert!(quad_err < 2.0 * se, "quadrature error {quad_err} vs {se}");
             assert_z(&format!("rough plastic ρ = {rho}, α = {alpha}, θ = {deg}°"), mc, fine, se.hypot(quad_err), 4.0);
