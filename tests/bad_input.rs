@@ -1174,3 +1174,63 @@ fn ies_c0_along_a_point_lights_direction() {
         &[&at(line_of(&toml, "distribution"), "lights[0].distribution.c0"), "parallel to the light's direction"],
     );
 }
+
+#[test]
+fn bad_abg_scatter() {
+    // Each: the material's lines in place of the Lambertian's, the key path, the message.
+    let cases: [(&str, &str, &str, &str); 9] = [
+        (
+            "abg-two",
+            "type = \"mirror\"\nscatter = { abg = [0.1, 0.01] }",
+            "scatter.abg",
+            "expected [A, B, g], three numbers; found 2 values",
+        ),
+        ("abg-text", "type = \"mirror\"\nscatter = { abg = [0.1, \"x\", 2] }", "scatter.abg[1]", ""),
+        (
+            "abg-zero-b",
+            "type = \"mirror\"\nscatter = { abg = [0.1, 0, 2] }",
+            "scatter.abg",
+            "B must be positive and finite",
+        ),
+        (
+            "abg-negative-a",
+            "type = \"mirror\"\nscatter = { abg = [-0.1, 0.01, 2] }",
+            "scatter.abg",
+            "A must be positive and finite",
+        ),
+        (
+            "abg-g",
+            "type = \"mirror\"\nscatter = { abg = [0.1, 0.01, 9] }",
+            "scatter.abg",
+            "g must lie in [0, 8], found 9",
+        ),
+        // πA ln(1 + 1/B) = 14.5 for A = 1, B = 0.01, g = 2.
+        ("abg-tis", "type = \"mirror\"\nscatter = { abg = [1, 0.01, 2] }", "scatter.abg", "these A, B, g scatter 14.4"),
+        ("abg-narrow", "type = \"mirror\"\nscatter = { abg = [1e-3, 1e-20, 2] }", "scatter.abg", "is below 1e-6"),
+        (
+            "abg-key",
+            "type = \"mirror\"\nscatter = { abc = [0.1, 0.01, 2] }",
+            "scatter.abc",
+            "unknown key `abc`; allowed keys here: abg",
+        ),
+        (
+            "abg-rough",
+            "type = \"conductor\"\nmetal = \"Al\"\nroughness = 0.2\nscatter = { abg = [0.1, 0.01, 2] }",
+            "scatter",
+            "give either `roughness` or `scatter`",
+        ),
+    ];
+    for (name, material, key, message) in cases {
+        let toml = edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", material);
+        let line = line_of(&toml, "scatter");
+        expect_bad(name, &toml, &[], &[&at(line, &format!("materials.white.{key}")), message]);
+    }
+    // Not on a Lambertian surface.
+    let toml = edit(BASE, "reflectance = 0.5", "reflectance = 0.5\nscatter = { abg = [0.1, 0.01, 2] }");
+    expect_bad(
+        "abg-lambertian",
+        &toml,
+        &[],
+        &[&at(line_of(&toml, "scatter"), "materials.white.scatter"), "unknown key `scatter`"],
+    );
+}

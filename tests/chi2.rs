@@ -4,7 +4,11 @@
 //! the bin; bins expecting fewer than 5 are pooled; the statistic's upper-tail probability must
 //! exceed α = 10⁻³ (so a correct sampler fails one such test in a thousand; the seeds are fixed,
 //! so a pass is reproducible). The pdf must also integrate to 1 over the sphere (to 10⁻³), and the
-//! harness itself is shown to reject a sampler paired with the wrong pdf.
+//! harness itself is shown to reject a sampler paired with the wrong pdf. ABg scatter, whose lobes
+//! can be far narrower than these bins, is tested in its own direction-cosine bins (tests/abg.rs).
+
+mod common;
+use common::chi2_tail;
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -25,34 +29,6 @@ const N_COS: usize = 12;
 const N_PHI: usize = 24;
 const SAMPLES: usize = 300_000;
 const ALPHA: f64 = 1e-3;
-
-/// Upper-tail probability of χ² with `k` degrees of freedom (Wilson–Hilferty: (χ²/k)^(1/3) is
-/// close to normal with mean 1 − 2/(9k) and variance 2/(9k); ample for k ≥ 10 and α = 10⁻³).
-fn chi2_tail(chi2: f64, k: f64) -> f64 {
-    let v = 2.0 / (9.0 * k);
-    let z = ((chi2 / k).cbrt() - (1.0 - v)) / v.sqrt();
-    0.5 * erfc(z / 2f64.sqrt())
-}
-
-/// Complementary error function (Numerical Recipes' erfcc, fractional error below 1.2e-7).
-fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t
-        * (-z * z - 1.26551223
-            + t * (1.00002368
-                + t * (0.37409196
-                    + t * (0.09678418
-                        + t * (-0.18628806
-                            + t * (0.27886807
-                                + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
-            .exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
-}
 
 fn bin_of(w: Vec3A) -> usize {
     let i = (((w.z as f64 + 1.0) / 2.0 * N_COS as f64) as usize).min(N_COS - 1);
@@ -349,6 +325,7 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
             k: Spectrum::Constant(6.69),
             specular_reflectance: Spectrum::Constant(1.0),
             roughness: alpha,
+            scatter: None,
         };
         let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n);
         for (deg, side) in [(0.0f64, 1.0f32), (45.0, 1.0), (80.0, -1.0), (89.0, 1.0)] {
@@ -374,6 +351,7 @@ fn the_lossy_harness_rejects_a_neighbouring_roughness() {
         k: Spectrum::Constant(6.69),
         specular_reflectance: Spectrum::Constant(1.0),
         roughness: alpha,
+        scatter: None,
     };
     let (sampled, judged) = (metal(0.5), metal(0.4));
     let (a, b) = (
@@ -391,6 +369,7 @@ fn rough_glass(alpha: f64) -> Material {
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
         roughness: alpha,
+        scatter: None,
     }
 }
 

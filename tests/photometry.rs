@@ -3,7 +3,7 @@
 //! 6e-5 per comparison; the photon counts make a 1–2 % bias fail).
 
 mod common;
-use common::{assert_z, cornell_toml, run, scene, surface};
+use common::{assert_z, chi_square_bounds, cornell_toml, farfield_z, run, run_farfield, scene, surface};
 
 use std::sync::atomic::AtomicBool;
 
@@ -18,13 +18,6 @@ fn run_maps(toml: &str, photons: u64, seed: u64) -> (Flux, Vec<MapEstimate>) {
     let chosen = apply_options(&mut s, &opts).unwrap();
     let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
     (output::flux(&s, &r), maps::estimates(&s, &r))
-}
-
-/// Upper and lower 1e-4 tail points of χ² with k degrees of freedom (Wilson–Hilferty:
-/// (χ²/k)^(1/3) is nearly normal with mean 1 − 2/(9k) and variance 2/(9k); z = 3.72).
-fn chi_square_bounds(k: f64) -> (f64, f64) {
-    let (m, s) = (1.0 - 2.0 / (9.0 * k), (2.0 / (9.0 * k)).sqrt());
-    (k * (m - 3.72 * s).powi(3), k * (m + 3.72 * s).powi(3))
 }
 
 /// A square plate of side `a` (m) at distance `h` below an isotropic point source of `lumens`,
@@ -186,40 +179,6 @@ fn ies_alone(file: &str, frame: &str, resolution: [usize; 2]) -> String {
     )
 }
 
-fn run_farfield(toml: &str, photons: u64, seed: u64) -> (Flux, photon::output::farfield::FarFieldEstimate) {
-    let mut s = scene(toml);
-    let opts = RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), ..Default::default() };
-    let chosen = apply_options(&mut s, &opts).unwrap();
-    let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
-    (output::flux(&s, &r), photon::output::farfield::estimates(&s, &r).remove(0))
-}
-
-/// Σ z² over the bins with a non-zero standard error, their count, and the largest |z|, of the
-/// far-field intensity (cd) against `expected(γ₀, γ₁, C)` in degrees.
-fn farfield_z(
-    e: &photon::output::farfield::FarFieldEstimate,
-    expected: impl Fn(f64, f64, f64) -> f64,
-) -> (f64, usize, f64) {
-    let [ng, nc] = e.detector.resolution;
-    let (mut chi2, mut k, mut worst) = (0.0, 0, 0.0f64);
-    for j in 0..nc {
-        for i in 0..ng {
-            let (g0, g1, c) = e.detector.bin_angles(i, j);
-            let (_, (cd, se)) = e.intensity(i, j);
-            let want = expected(g0, g1, c);
-            if se == 0.0 {
-                assert!(cd == 0.0 && want < 1e-9, "bin γ {g0}–{g1}, C {c}: {cd} cd with no spread, expected {want}");
-                continue;
-            }
-            let z = (cd - want) / se;
-            chi2 += z * z;
-            k += 1;
-            worst = worst.max(z.abs());
-        }
-    }
-    (chi2, k, worst)
-}
-
 #[test]
 fn isotropic_ies_file_gives_its_lumens_and_a_flat_far_field() {
     // 100 cd everywhere: Φ = 400π lm taken from the file (no power given), and every far-field
@@ -228,7 +187,7 @@ fn isotropic_ies_file_gives_its_lumens_and_a_flat_far_field() {
     let (f, e) = run_farfield(&toml, 1_000_000, 11);
     let lm = 400.0 * std::f64::consts::PI;
     assert!((f.emitted_lm - lm).abs() < 1e-9 * lm, "emitted {} lm", f.emitted_lm);
-    let (chi2, k, worst) = farfield_z(&e, |_, _, _| 100.0);
+    let (chi2, k, worst) = farfield_z(&e, |_, _, _| 100.0, |_, _| false);
     let (lo, hi) = chi_square_bounds(k as f64);
     assert!(chi2 > lo && chi2 < hi && worst < 4.5, "χ² {chi2} over {k} bins (bounds {lo}–{hi}), worst |z| {worst}");
 }
@@ -242,13 +201,17 @@ fn cosine_ies_file_reproduces_a_lambertian_far_field() {
     let (f, e) = run_farfield(&toml, 2_000_000, 12);
     let lm = 1000.0 * std::f64::consts::PI;
     assert!((f.emitted_lm - lm).abs() < 2e-3 * lm, "emitted {} lm", f.emitted_lm);
-    let (chi2, k, worst) = farfield_z(&e, |g0, g1, _| {
-        if g0 >= 90.0 {
-            return 0.0;
-        }
-        let (a, b) = (g0.to_radians(), g1.to_radians());
-        1000.0 * (b.sin().powi(2) - a.sin().powi(2)) / (2.0 * (a.cos() - b.cos()))
-    });
+    let (chi2, k, worst) = farfield_z(
+        &e,
+        |g0, g1, _| {
+            if g0 >= 90.0 {
+                return 0.0;
+            }
+            let (a, b) = (g0.to_radians(), g1.to_radians());
+            1000.0 * (b.sin().powi(2) - a.sin().powi(2)) / (2.0 * (a.cos() - b.cos()))
+        },
+        |_, _| false,
+    );
     let (lo, hi) = chi_square_bounds(k as f64);
     assert!(chi2 > lo && chi2 < hi && worst < 4.5, "χ² {chi2} over {k} bins (bounds {lo}–{hi}), worst |z| {worst}");
 }
@@ -282,7 +245,7 @@ fn bilateral_ies_file_round_trips_through_the_far_field_in_a_turned_frame() {
     // The file's C90 plane at γ = 30° is 2 × 300 cd (multiplier 2), mirrored to C270.
     assert!((table.intensity_cd(30.0, 90.0) - 600.0).abs() < 1e-9);
     assert!((table.intensity_cd(30.0, 270.0) - 600.0).abs() < 1e-9);
-    let (chi2, k, worst) = farfield_z(&e, mean_over_bin);
+    let (chi2, k, worst) = farfield_z(&e, mean_over_bin, |_, _| false);
     let (lo, hi) = chi_square_bounds(k as f64);
     assert!(chi2 > lo && chi2 < hi && worst < 4.5, "χ² {chi2} over {k} bins (bounds {lo}–{hi}), worst |z| {worst}");
 }

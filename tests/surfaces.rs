@@ -30,6 +30,7 @@ fn conductor(n: f64, k: f64, alpha: f64) -> Material {
         k: Spectrum::Constant(k),
         specular_reflectance: Spectrum::Constant(1.0),
         roughness: alpha,
+        scatter: None,
     }
 }
 
@@ -256,6 +257,7 @@ fn rough_glass(alpha: f64) -> Material {
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
         roughness: alpha,
+        scatter: None,
     }
 }
 

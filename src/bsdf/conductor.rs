@@ -85,7 +85,7 @@ pub struct Conductor<const N: usize> {
 impl<const N: usize> Conductor<N> {
     /// F(cosθ)·tint per lane.
     #[inline]
-    fn reflectance(&self, cos: f64) -> Lanes<N> {
+    pub(super) fn reflectance(&self, cos: f64) -> Lanes<N> {
         Lanes(std::array::from_fn(|i| fresnel_conductor(cos, self.eta.0[i], self.k.0[i]) * self.tint.0[i]))
     }
 

@@ -8,6 +8,7 @@
 //! path and `wi` onward; f(wo, wi) and pdf(wo, wi) are per solid angle; `n` is the unit
 //! geometric normal, either side. Adding a model means one file here and one arm per match.
 
+pub mod abg;
 mod conductor;
 mod dielectric;
 mod lambertian;
@@ -113,6 +114,7 @@ enum Model<'a, const N: usize> {
     Dielectric(dielectric::Dielectric),
     RoughDielectric(rough_dielectric::RoughDielectric),
     Plastic(plastic::Plastic<'a, N>),
+    Abg(abg::AbgSurface<'a, N>),
 }
 
 /// What a model needs worked out once per run rather than at every hit: a plastic's coat
@@ -120,6 +122,7 @@ enum Model<'a, const N: usize> {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Prepared {
     coat: Option<plastic::Coat>,
+    abg: Option<abg::Table>,
 }
 
 impl Prepared {
@@ -135,11 +138,19 @@ impl Prepared {
         match material {
             Material::Plastic { diffuse_reflectance, ior, roughness } => {
                 let rho_max = diffuse_reflectance.min_max_over(range).1;
-                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, *roughness)) }
+                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, *roughness)), abg: None }
             }
+            Material::Mirror { scatter: Some(s), .. }
+            | Material::Conductor { scatter: Some(s), .. }
+            | Material::Dielectric { scatter: Some(s), .. } => Prepared { coat: None, abg: Some(abg::Table::new(s)) },
             _ => Prepared::default(),
         }
     }
+}
+
+#[inline]
+fn abg_table(prepared: &Prepared) -> &abg::Table {
+    prepared.abg.as_ref().expect("an ABg surface is prepared (Prepared::of) before it is traced")
 }
 
 /// A material at one hit and its wavelength lanes, borrowing its run-wide constants.
@@ -165,18 +176,35 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                 Lanes::eval::<SPECTRAL>(reflectance, lambda),
                 Lanes::eval::<SPECTRAL>(transmittance, lambda),
             )),
-            Material::Mirror { reflectance } => {
-                Model::Mirror(mirror::Mirror { reflectance: Lanes::eval::<SPECTRAL>(reflectance, lambda) })
+            Material::Mirror { reflectance, scatter } => {
+                let reflectance = Lanes::eval::<SPECTRAL>(reflectance, lambda);
+                match scatter {
+                    None => Model::Mirror(mirror::Mirror { reflectance }),
+                    Some(_) => {
+                        Model::Abg(abg::AbgSurface { base: abg::Base::Mirror(reflectance), table: abg_table(prepared) })
+                    }
+                }
             }
-            Material::Conductor { eta, k, specular_reflectance, roughness } => Model::Conductor(conductor::Conductor {
-                eta: Lanes::eval::<SPECTRAL>(eta, lambda),
-                k: Lanes::eval::<SPECTRAL>(k, lambda),
-                tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
-                ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
-            }),
-            Material::Dielectric { ior, outside_ior, roughness, .. } => {
+            Material::Conductor { eta, k, specular_reflectance, roughness, scatter } => {
+                let metal = conductor::Conductor {
+                    eta: Lanes::eval::<SPECTRAL>(eta, lambda),
+                    k: Lanes::eval::<SPECTRAL>(k, lambda),
+                    tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
+                    ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
+                };
+                match scatter {
+                    None => Model::Conductor(metal),
+                    Some(_) => {
+                        Model::Abg(abg::AbgSurface { base: abg::Base::Conductor(metal), table: abg_table(prepared) })
+                    }
+                }
+            }
+            Material::Dielectric { ior, outside_ior, roughness, scatter, .. } => {
                 let (ior, outside_ior) = (ior.eval(lambda[0]), outside_ior.eval(lambda[0]));
-                if *roughness > 0.0 {
+                if scatter.is_some() {
+                    let base = abg::Base::Dielectric { ior, outside_ior };
+                    Model::Abg(abg::AbgSurface { base, table: abg_table(prepared) })
+                } else if *roughness > 0.0 {
                     let ggx = microfacet::Ggx::new(*roughness, *roughness);
                     Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx })
                 } else {
@@ -200,6 +228,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Conductor(m) => m.albedo(wo, self.n),
             Model::Plastic(m) => m.albedo_bound(wo, self.n),
             Model::Dielectric(_) | Model::RoughDielectric(_) => Lanes::ONE,
+            Model::Abg(m) => m.albedo(wo, self.n),
         }
     }
 
@@ -225,6 +254,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Conductor(m) => m.albedo(wo, self.n).mean(),
             Model::Plastic(m) => m.albedo_bound(wo, self.n).0[0],
             Model::Dielectric(_) | Model::RoughDielectric(_) => 1.0,
+            Model::Abg(m) => m.albedo(wo, self.n).mean(),
         }
     }
 
@@ -245,7 +275,11 @@ impl<'a, const N: usize> Bsdf<'a, N> {
     /// paths need no roulette.
     #[inline]
     pub fn absorbs(&self) -> bool {
-        !matches!(self.model, Model::Dielectric(_) | Model::RoughDielectric(_))
+        match &self.model {
+            Model::Dielectric(_) | Model::RoughDielectric(_) => false,
+            Model::Abg(m) => !m.is_dielectric(),
+            _ => true,
+        }
     }
 
     #[inline]
@@ -260,7 +294,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
         match &self.model {
             Model::Lambertian(_) => true,
             Model::Conductor(m) => m.ggx.is_some(),
-            Model::RoughDielectric(_) | Model::Plastic(_) => true,
+            Model::RoughDielectric(_) | Model::Plastic(_) | Model::Abg(_) => true,
             _ => false,
         }
     }
@@ -274,6 +308,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Conductor(m) => m.f(wo, wi, self.n),
             Model::RoughDielectric(m) => m.f(wo, wi, self.n, mode),
             Model::Plastic(m) => m.f(wo, wi, self.n),
+            Model::Abg(m) => m.f(wo, wi, self.n, mode),
             _ => Factored::ZERO,
         }
     }
@@ -286,6 +321,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Conductor(m) => m.pdf(wo, wi, self.n),
             Model::RoughDielectric(m) => m.pdf(wo, wi, self.n),
             Model::Plastic(m) => m.pdf(wo, wi, self.n),
+            Model::Abg(m) => m.pdf(wo, wi, self.n),
             _ => 0.0,
         }
     }
@@ -302,6 +338,7 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Dielectric(m) => Some(m.sample::<N>(wo, self.n, mode, s)),
             Model::RoughDielectric(m) => m.sample::<N>(wo, self.n, mode, s),
             Model::Plastic(m) => m.sample(wo, self.n, s),
+            Model::Abg(m) => m.sample(wo, self.n, mode, s),
         }
     }
 
@@ -332,6 +369,10 @@ impl<'a, const N: usize> Bsdf<'a, N> {
             Model::Dielectric(m) => exact(m.lobe_factor(lobe, wo, self.n, mode), Lanes::ONE),
             Model::RoughDielectric(m) => shared(m.event_terms(wo, wi, self.n).0, 1.0),
             Model::Plastic(m) => shared(m.weight(lobe, wo, wi, self.n), m.albedo_bound(wo, self.n).0[0]),
+            Model::Abg(m) => {
+                let (factor, albedo) = m.event_terms(lobe, wo, wi, self.n, mode);
+                exact(factor, albedo)
+            }
         }
     }
 }

@@ -1128,11 +1128,11 @@ impl<'s> Loader<'s> {
                 Ok(Material::Lambertian { reflectance, transmittance })
             }
             "mirror" => {
-                t.allow(&["type", "reflectance"])?;
-                Ok(Material::Mirror { reflectance: fraction("reflectance", 1.0)? })
+                t.allow(&["type", "reflectance", "scatter"])?;
+                Ok(Material::Mirror { reflectance: fraction("reflectance", 1.0)?, scatter: self.scatter(t, 0.0)? })
             }
             "conductor" => {
-                t.allow(&["type", "metal", "eta", "k", "roughness", "specular_reflectance"])?;
+                t.allow(&["type", "metal", "eta", "k", "roughness", "specular_reflectance", "scatter"])?;
                 let named = t.with("metal", |n| {
                     let name = n.str()?;
                     let (eta, k, cover) = crate::scene::catalog::metal(name).ok_or_else(|| {
@@ -1169,8 +1169,9 @@ impl<'s> Loader<'s> {
                     }
                 };
                 let roughness = self.roughness(t)?;
+                let scatter = self.scatter(t, roughness)?;
                 let specular_reflectance = fraction("specular_reflectance", 1.0)?;
-                Ok(Material::Conductor { eta, k, specular_reflectance, roughness })
+                Ok(Material::Conductor { eta, k, specular_reflectance, roughness, scatter })
             }
             "plastic" => {
                 t.allow(&["type", "diffuse_reflectance", "ior", "roughness"])?;
@@ -1188,7 +1189,7 @@ impl<'s> Loader<'s> {
                 Ok(Material::Plastic { diffuse_reflectance, ior, roughness })
             }
             "dielectric" => {
-                t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness"])?;
+                t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness", "scatter"])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
                     let s = t.with(key, |n| {
                         let s = self.spectrum(n, SpectrumUse::DielectricIor { range })?;
@@ -1204,7 +1205,8 @@ impl<'s> Loader<'s> {
                 let outside_ior = ior_of("outside_ior", 1.0)?;
                 let absorption_per_m = t.with("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
                 let roughness = self.roughness(t)?;
-                Ok(Material::Dielectric { ior, outside_ior, absorption_per_m, roughness })
+                let scatter = self.scatter(t, roughness)?;
+                Ok(Material::Dielectric { ior, outside_ior, absorption_per_m, roughness, scatter })
             }
             other => Err(t.err_at(
                 "type",
@@ -1234,6 +1236,53 @@ impl<'s> Loader<'s> {
             })?
             .unwrap_or(0.0);
         Ok(if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness })
+    }
+
+    /// `scatter = { abg = [A, B, g] }` on a smooth surface: A > 0, B > 0, 0 ≤ g ≤ 8, a lobe
+    /// photon can resolve, and at most all of the specular power scattered at any incidence.
+    fn scatter(&self, t: Table<'s, '_>, roughness: f64) -> R<Option<Abg>> {
+        t.with("scatter", |n| {
+            if roughness > 0.0 {
+                return Err(n.err(
+                    "ABg scatter applies to a smooth surface (it takes its power from the specular reflection); \
+                     give either `roughness` or `scatter`",
+                ));
+            }
+            let st = n.table()?;
+            st.allow(&["abg"])?;
+            st.require("abg", |n| {
+                let v = n.each(|x| x.f64())?;
+                let [a, b, g] = v[..] else {
+                    return Err(n.err(format!("expected [A, B, g], three numbers; found {} values", v.len())));
+                };
+                if !(a > 0.0 && a.is_finite()) {
+                    return Err(n.err(format!("A must be positive and finite, found {a}")));
+                }
+                if !(b > 0.0 && b.is_finite()) {
+                    return Err(n.err(format!("B must be positive and finite (B = 0 puts an infinite peak at the specular direction), found {b}")));
+                }
+                if !(0.0..=8.0).contains(&g) {
+                    return Err(n.err(format!("g must lie in [0, 8], found {g}")));
+                }
+                let abg = Abg { a, b, g };
+                if abg.knee() < 1e-6 {
+                    return Err(n.err(format!(
+                        "the lobe's width B^(1/g) = {:e} is below 1e-6 (the precision of a direction): the surface is \
+                         specular; raise B or drop `scatter`",
+                        abg.knee()
+                    )));
+                }
+                let tis = abg.normal_incidence_tis();
+                if tis > 1.0 {
+                    return Err(n.err(format!(
+                        "these A, B, g scatter {tis:.4} of the specular power at normal incidence (TIS = \
+                         ∫ BSDF cosθ dω over the hemisphere); it must not exceed 1: lower A to at most {:.6e}",
+                        a / tis
+                    )));
+                }
+                Ok(abg)
+            })
+        })
     }
 
     fn distribution(&self, n: Node<'s, '_>) -> R<(Distribution, Option<IesLight>)> {
@@ -1590,7 +1639,7 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
             simplify(reflectance, range);
             simplify(transmittance, range);
         }
-        Material::Mirror { reflectance } => simplify(reflectance, range),
+        Material::Mirror { reflectance, .. } => simplify(reflectance, range),
         Material::Plastic { diffuse_reflectance, .. } => simplify(diffuse_reflectance, range),
         Material::Conductor { eta, k, specular_reflectance, .. } => {
             simplify(eta, range);

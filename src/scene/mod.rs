@@ -42,16 +42,19 @@ pub enum Material {
         reflectance: Spectrum,
         transmittance: Spectrum,
     },
+    /// A smooth mirror, optionally with ABg `scatter`.
     Mirror {
         reflectance: Spectrum,
+        scatter: Option<Abg>,
     },
     /// A metal of complex index `eta` + i`k` (against an outside of index 1), times a factor;
-    /// GGX `roughness` α (0: smooth).
+    /// GGX `roughness` α (0: smooth); a smooth one may have ABg `scatter`.
     Conductor {
         eta: Spectrum,
         k: Spectrum,
         specular_reflectance: Spectrum,
         roughness: f64,
+        scatter: Option<Abg>,
     },
     /// A diffuse base of albedo `diffuse_reflectance` under a dielectric coat of index `ior`
     /// (against 1 outside), smooth or rough (GGX `roughness` α > 0).
@@ -61,14 +64,74 @@ pub enum Material {
         roughness: f64,
     },
     /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
-    /// rough (GGX `roughness` α > 0).
+    /// rough (GGX `roughness` α > 0); a smooth one may have ABg `scatter`.
     Dielectric {
         ior: Spectrum,
         outside_ior: Spectrum,
         absorption_per_m: Option<Spectrum>,
         roughness: f64,
+        scatter: Option<Abg>,
     },
 }
+
+/// ABg surface scatter (`scatter = { abg = [A, B, g] }`), the stray-light model of TracePro and
+/// Zemax OpticStudio: BSDF = A/(B + |β − β₀|^g) sr⁻¹, β the tangent-plane projection of the
+/// scattered direction and β₀ that of the specular one. `bsdf::abg` tabulates and samples it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Abg {
+    pub a: f64,
+    pub b: f64,
+    pub g: f64,
+}
+
+impl Abg {
+    /// The BSDF over A at |β − β₀|² = `s`: 1/(B + s^{g/2}).
+    #[inline]
+    pub fn shape(&self, s: f64) -> f64 {
+        1.0 / (self.b + s.powf(0.5 * self.g))
+    }
+
+    /// |β − β₀| at which the BSDF has fallen to half its peak, B^{1/g} (1 for g = 0, a flat lobe).
+    pub fn knee(&self) -> f64 {
+        if self.g > 0.0 {
+            self.b.powf(1.0 / self.g)
+        } else {
+            1.0
+        }
+    }
+
+    /// Total integrated scatter at normal incidence, ∫_{|β|<1} BSDF d²β = πA ∫₀¹ ds/(B + s^{g/2}),
+    /// by Gauss–Legendre panels uniform in ln s. It is the largest at any incidence: the disk
+    /// |β| < 1 is centred on the lobe there, and the overlap of two centred, radially decreasing
+    /// functions is greatest when they are concentric.
+    pub fn normal_incidence_tis(&self) -> f64 {
+        // Below s_lo the shape is flat to 1e-6 relative: ∫₀^{s_lo} ≈ s_lo·shape(0).
+        let s_lo = (self.knee() * 1e-4).powi(2).min(1e-8);
+        let (x0, panels) = (s_lo.ln(), 400);
+        let h = -x0 / panels as f64;
+        let mut sum = s_lo / self.b;
+        for p in 0..panels {
+            let mid = x0 + (p as f64 + 0.5) * h;
+            for (x, w) in GAUSS_LEGENDRE_8 {
+                let s = (mid + 0.5 * h * x).exp();
+                sum += 0.5 * h * w * s * self.shape(s);
+            }
+        }
+        std::f64::consts::PI * self.a * sum
+    }
+}
+
+/// 8-point Gauss–Legendre nodes and weights on [−1, 1].
+const GAUSS_LEGENDRE_8: [(f64, f64); 8] = [
+    (-0.960_289_856_497_536_2, 0.101_228_536_290_376_26),
+    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
+    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
+    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
+    (0.960_289_856_497_536_2, 0.101_228_536_290_376_26),
+];
 
 impl Material {
     pub fn kind(&self) -> &'static str {
@@ -322,8 +385,9 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.diffuse_transmission |= positive(transmittance);
                 fx.spectral |= varies(reflectance) || varies(transmittance);
             }
-            Material::Mirror { reflectance } => {
+            Material::Mirror { reflectance, scatter } => {
                 fx.specular_reflection |= positive(reflectance);
+                fx.glossy_reflection |= scatter.is_some() && positive(reflectance);
                 fx.spectral |= varies(reflectance);
             }
             Material::Plastic { diffuse_reflectance, roughness, .. } => {
@@ -335,22 +399,27 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.diffuse_reflection |= positive(diffuse_reflectance);
                 fx.spectral |= varies(diffuse_reflectance);
             }
-            Material::Conductor { eta, k, specular_reflectance, roughness } => {
+            Material::Conductor { eta, k, specular_reflectance, roughness, scatter } => {
                 if positive(specular_reflectance) {
                     if *roughness > 0.0 {
                         fx.glossy_reflection = true;
                     } else {
                         fx.specular_reflection = true;
+                        fx.glossy_reflection |= scatter.is_some();
                     }
                 }
                 fx.spectral |= varies(eta) || varies(k) || varies(specular_reflectance);
             }
-            Material::Dielectric { ior, outside_ior, absorption_per_m, roughness } => {
+            Material::Dielectric { ior, outside_ior, absorption_per_m, roughness, scatter } => {
                 if *roughness > 0.0 {
                     fx.glossy_reflection = true;
                     fx.glossy_transmission = true;
                 } else {
                     fx.specular_reflection = true;
+                    if scatter.is_some() {
+                        fx.glossy_reflection = true;
+                        fx.glossy_transmission = true;
+                    }
                 }
                 fx.refraction = true;
                 let dispersive = varies(ior) || varies(outside_ior);

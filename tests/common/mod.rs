@@ -86,3 +86,88 @@ name = "lamp"
 shape = { type = "quad", corners = [[0, 1, 0], [1, 1, 0], [1, 1, 1], [0, 1, 1]] }
 power_w = 10
 "#;
+
+/// Upper-tail probability of χ² with `k` degrees of freedom (Wilson–Hilferty: (χ²/k)^(1/3) is
+/// close to normal with mean 1 − 2/(9k) and variance 2/(9k); ample for k ≥ 10 and α = 10⁻³).
+pub fn chi2_tail(chi2: f64, k: f64) -> f64 {
+    let v = 2.0 / (9.0 * k);
+    let z = ((chi2 / k).cbrt() - (1.0 - v)) / v.sqrt();
+    0.5 * erfc(z / 2f64.sqrt())
+}
+
+/// Complementary error function (Numerical Recipes' erfcc, fractional error below 1.2e-7).
+pub fn erfc(x: f64) -> f64 {
+    let z = x.abs();
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let r = t
+        * (-z * z - 1.26551223
+            + t * (1.00002368
+                + t * (0.37409196
+                    + t * (0.09678418
+                        + t * (-0.18628806
+                            + t * (0.27886807
+                                + t * (-1.13520398 + t * (1.48851587 + t * (-0.82215223 + t * 0.17087277)))))))))
+            .exp();
+    if x >= 0.0 {
+        r
+    } else {
+        2.0 - r
+    }
+}
+
+/// Upper and lower 1e-4 tail points of χ² with k degrees of freedom (Wilson–Hilferty:
+/// (χ²/k)^(1/3) is nearly normal with mean 1 − 2/(9k) and variance 2/(9k); z = 3.72).
+pub fn chi_square_bounds(k: f64) -> (f64, f64) {
+    let (m, s) = (1.0 - 2.0 / (9.0 * k), (2.0 / (9.0 * k)).sqrt());
+    (k * (m - 3.72 * s).powi(3), k * (m + 3.72 * s).powi(3))
+}
+
+/// Runs `toml` (default transport options) and returns its flux table and first far field.
+pub fn run_farfield(toml: &str, photons: u64, seed: u64) -> (Flux, photon::output::farfield::FarFieldEstimate) {
+    run_farfield_with(toml, photons, seed, RunOptions::default().transport)
+}
+
+/// The same with the given transport options.
+pub fn run_farfield_with(
+    toml: &str,
+    photons: u64,
+    seed: u64,
+    transport: TransportOptions,
+) -> (Flux, photon::output::farfield::FarFieldEstimate) {
+    let mut s = scene(toml);
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
+    (output::flux(&s, &r), photon::output::farfield::estimates(&s, &r).remove(0))
+}
+
+/// Σ z² over the bins with a non-zero standard error, their count, and the largest |z|, of the
+/// far-field intensity (cd) against `expected(γ₀, γ₁, C)` in degrees; bins `skip` accepts are left out.
+pub fn farfield_z(
+    e: &photon::output::farfield::FarFieldEstimate,
+    expected: impl Fn(f64, f64, f64) -> f64,
+    skip: impl Fn(usize, usize) -> bool,
+) -> (f64, usize, f64) {
+    let [ng, nc] = e.detector.resolution;
+    let (mut chi2, mut k, mut worst) = (0.0, 0, 0.0f64);
+    for j in 0..nc {
+        for i in 0..ng {
+            if skip(i, j) {
+                continue;
+            }
+            let (g0, g1, c) = e.detector.bin_angles(i, j);
+            let (_, (cd, se)) = e.intensity(i, j);
+            let want = expected(g0, g1, c);
+            if se == 0.0 {
+                assert!(cd == 0.0 && want < 1e-9, "bin γ {g0}–{g1}, C {c}: {cd} cd with no spread, expected {want}");
+                continue;
+            }
+            let z = (cd - want) / se;
+            chi2 += z * z;
+            k += 1;
+            worst = worst.max(z.abs());
+        }
+    }
+    (chi2, k, worst)
+}
