@@ -503,3 +503,37 @@ fn particle_tracer_far_field_of_an_abg_mirror_and_glass_is_the_closed_form() {
         }
     }
 }
+
+#[test]
+fn radiance_f_is_the_importance_f_of_the_reversed_path_and_weights_follow_it() {
+    // Both modes evaluate one physical BSDF f(light's direction → onward): a camera path's
+    // f(wo, wi) is the light's f(wi → wo), which a particle arriving from wi evaluates as
+    // f(wi, wo). The model need not be reciprocal (R is taken at the light's incidence, and a
+    // refracted lobe lies in the β of the side it leaves into), but the modes must agree.
+    let mut s = Sampler::for_batch(17, 0);
+    for m in [metal(NARROW), glass(NARROW), glass(BROAD)] {
+        for n in [Vec3A::Z, -Vec3A::Z] {
+            let b = grey(&m, n);
+            let mut compared = 0;
+            for _ in 0..20_000 {
+                let wo = photon::sampling::uniform_sphere(s.uniform_f32(), s.uniform_f32());
+                let wi = photon::sampling::uniform_sphere(s.uniform_f32(), s.uniform_f32());
+                let radiance = b.f(wo, wi, Mode::Radiance).value().0[0];
+                let importance = b.f(wi, wo, Mode::Importance).value().0[0];
+                assert!(
+                    (radiance - importance).abs() <= 1e-9 * radiance.max(importance),
+                    "{m:?}, n = {n}: f(wo, wi, radiance) = {radiance}, f(wi, wo, importance) = {importance}"
+                );
+                compared += (radiance > 0.0) as usize;
+                // A camera path's scattered sample weighs f|cos|/pdf of the radiance f.
+                let Some(x) = b.sample(wo, Mode::Radiance, &mut s) else { continue };
+                if !x.lobe.is_delta() {
+                    let via_f = b.f(wo, x.wi, Mode::Radiance).value().0[0] * (x.wi.dot(n).abs() as f64) / x.pdf;
+                    let w = x.weight().0[0];
+                    assert!((w - via_f).abs() <= 1e-5 * via_f.max(1e-3), "{m:?}: weight {w}, f|cos|/pdf {via_f}");
+                }
+            }
+            assert!(compared > 5000, "{m:?}: only {compared} pairs with f > 0");
+        }
+    }
+}

@@ -300,13 +300,14 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
                 let t = 1.0 - fresnel_dielectric(l.o.z as f64, l.eta_o, l.eta_t).0;
                 Factored { spectral: Lanes::splat(t), angular: self.table.bsdf(bi, beta0) }
             }
-            // Light from wi refracts about its own refracted direction, in wo's β; radiance
-            // is scaled by (η_o/η_i)² in the narrower solid angle.
+            // Light from wi refracts about its own refracted direction, in wo's β. The lobe is
+            // the power scattered per projected solid angle of the side it leaves into, which is
+            // also the radiance BSDF f(wi → wo): no (η_o/η_i)² here. That factor belongs to the
+            // delta lobe's weight alone, where a density in ω_o is taken per ω_i.
             Mode::Radiance => {
                 let Some(beta0) = Self::refracted_beta(l.i, l.eta_t, l.eta_o) else { return Factored::ZERO };
                 let t = 1.0 - fresnel_dielectric(-l.i.z as f64, l.eta_t, l.eta_o).0;
-                let scale = (l.eta_o / l.eta_t).powi(2);
-                Factored { spectral: Lanes::splat(t * scale), angular: self.table.bsdf(bo, beta0) }
+                Factored { spectral: Lanes::splat(t), angular: self.table.bsdf(bo, beta0) }
             }
         }
     }
@@ -386,6 +387,7 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
     fn lobe_factor(&self, lobe: Lobe, l: &Local, mode: Mode) -> Lanes<N> {
         let bo = Local::beta(l.o);
         let r_o = self.reflectance(l.o.z as f64, l.eta_o, l.eta_t);
+        // The delta refraction's radiance weight (η_o/η_t)² (see `f`).
         let scale = match mode {
             Mode::Radiance => (l.eta_o / l.eta_t).powi(2),
             Mode::Importance => 1.0,
@@ -418,7 +420,7 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
                         let Some(beta_light) = Self::refracted_beta(l.i, l.eta_t, l.eta_o) else { return Lanes::ZERO };
                         let t_light = 1.0 - fresnel_dielectric(-l.i.z as f64, l.eta_t, l.eta_o).0;
                         let ratio = self.table.bsdf(bo, beta_light) / self.table.bsdf(Local::beta(l.i), beta0);
-                        Lanes::splat(t_light * scale * tis * ratio)
+                        Lanes::splat(t_light * tis * ratio)
                     }
                 }
             }
