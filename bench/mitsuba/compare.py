@@ -70,14 +70,14 @@ def trapezoid(x: list[float], y: list[float], lo: float, hi: float) -> float:
     return float(np.trapezoid(np.interp(xs, x, y, left=0.0, right=0.0), xs))
 
 
-def load_toml() -> dict:
-    with open(SCENE, "rb") as f:
+def load_toml(scene: Path = SCENE) -> dict:
+    with open(scene, "rb") as f:
         return tomllib.load(f)
 
 
-def write_quad_obj(path: Path, corners: list[list[float]]) -> None:
+def write_quad_obj(path: Path, corners: list[list[float]], scene: Path = SCENE) -> None:
     with open(path, "w") as f:
-        f.write("# written by bench/mitsuba/compare.py from scenes/cornell_box.toml (mm)\n")
+        f.write(f"# written by bench/mitsuba/compare.py from scenes/{scene.name} (mm)\n")
         for c in corners:
             f.write("v {} {} {}\n".format(*c))
         f.write("f 1 2 3 4\n")
@@ -88,7 +88,85 @@ def quad_area(c: list[list[float]]) -> float:
     return 0.5 * (np.linalg.norm(np.cross(b - a, cc - a)) + np.linalg.norm(np.cross(cc - a, d - a)))
 
 
-def mitsuba_scene_dict(mi, toml: dict, work: Path, spp: int, max_depth: int) -> tuple[dict, dict]:
+def irregular(wl: list[float], val: list[float], scale: float = 1.0) -> dict:
+    """A piecewise-linear Mitsuba spectrum (zero outside its table, as photon's)."""
+    return {
+        "type": "irregular",
+        "wavelengths": ", ".join(f"{w:g}" for w in wl),
+        "values": ", ".join(f"{v * scale:.9g}" for v in val),
+    }
+
+
+def read_nk(path: Path) -> tuple[list[float], list[float], list[float]]:
+    """A bundled metal's table (wavelength_nm, n, k), as src/scene/catalog.rs reads it."""
+    with open(path, newline="") as f:
+        rows = [[float(x) for x in r] for r in list(csv.reader(f))[1:] if r]
+    return [r[0] for r in rows], [r[1] for r in rows], [r[2] for r in rows]
+
+
+def mitsuba_bsdf(m: dict, scene_dir: Path) -> dict:
+    """photon's material `m` (a [materials.*] table) as a Mitsuba BSDF. The Cornell box has only
+    `lambertian`; the others are for scenes/cornell_glossy.toml (bench/mitsuba/glossy.py):
+
+    * `conductor` → `roughconductor` (GGX, visible-normal sampling) with photon's own n, k table
+      (spectra/metal_<name>_nk.csv, not Mitsuba's built-in metals), in `twosided`;
+    * `dielectric` → `roughdielectric`, int_ior = ior, ext_ior = outside_ior (1 by default in
+      photon, where Mitsuba's default is air's 1.000277);
+    * `plastic` → `roughplastic`, `nonlinear = true` (photon's diffuse_reflectance is the base's own
+      albedo), ext_ior 1, in `twosided`.
+
+    Smooth (roughness 0) materials map to `conductor`, `dielectric` and `plastic`."""
+
+    def spectrum(v) -> dict | float:
+        if isinstance(v, (int, float)):
+            return float(v)
+        if "file" in v:
+            return irregular(*read_csv((scene_dir / v["file"]).resolve()))
+        if "table" in v:
+            return irregular([r[0] for r in v["table"]], [r[1] for r in v["table"]])
+        raise SystemExit(f"unsupported spectrum {v}")
+
+    def alpha(m: dict) -> float:
+        a = m.get("roughness", 0.0)
+        if not isinstance(a, (int, float)):
+            raise SystemExit(f"anisotropic roughness is not mapped: {m}")
+        return float(a)
+
+    def number(v, what: str) -> float:
+        if not isinstance(v, (int, float)):
+            raise SystemExit(f"{what} must be a number here, found {v!r}")
+        return float(v)
+
+    kind = m["type"]
+    if kind == "lambertian":
+        # photon's Lambertian surfaces reflect on both sides
+        return {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": spectrum(m["reflectance"])}}
+    if kind == "conductor":
+        if "metal" in m:
+            wl, n, k = read_nk(ROOT / "spectra" / f"metal_{m['metal']}_nk.csv")
+            eta, kk = irregular(wl, n), irregular(wl, k)
+        else:
+            eta, kk = spectrum(m["eta"]), spectrum(m["k"])
+        b = {"eta": eta, "k": kk, "specular_reflectance": number(m.get("specular_reflectance", 1.0), "specular_reflectance")}
+        a = alpha(m)
+        b |= {"type": "roughconductor", "distribution": "ggx", "alpha": a, "sample_visible": True} if a > 0 else {"type": "conductor"}
+        return {"type": "twosided", "bsdf": b}
+    if kind == "dielectric":
+        assert "absorption_per_m" not in m, m
+        b = {"int_ior": number(m.get("ior", 1.5), "ior"), "ext_ior": number(m.get("outside_ior", 1.0), "outside_ior")}
+        a = alpha(m)
+        b |= {"type": "roughdielectric", "distribution": "ggx", "alpha": a, "sample_visible": True} if a > 0 else {"type": "dielectric"}
+        return b  # a dielectric boundary has two sides already
+    if kind == "plastic":
+        b = {"diffuse_reflectance": spectrum(m.get("diffuse_reflectance", 0.5)), "int_ior": number(m.get("ior", 1.5), "ior"),
+             "ext_ior": 1.0, "nonlinear": True}
+        a = alpha(m)
+        b |= {"type": "roughplastic", "distribution": "ggx", "alpha": a, "sample_visible": True} if a > 0 else {"type": "plastic"}
+        return {"type": "twosided", "bsdf": b}  # photon's plastic reflects alike from both sides
+    raise SystemExit(f"material type {kind} is not mapped to Mitsuba")
+
+
+def mitsuba_scene_dict(mi, toml: dict, work: Path, spp: int, max_depth: int, scene: Path = SCENE) -> tuple[dict, dict]:
     """The Mitsuba scene as a dict for mi.load_dict, and facts about it for the report."""
     assert toml["scene"]["unit"] == "mm"
     unit_m = 1e-3
@@ -96,28 +174,17 @@ def mitsuba_scene_dict(mi, toml: dict, work: Path, spp: int, max_depth: int) -> 
     to_m = mi.ScalarTransform4f().scale(unit_m)
 
     def spectrum(path: Path, scale: float = 1.0) -> dict:
-        wl, val = read_csv(path)
-        return {
-            "type": "irregular",
-            "wavelengths": ", ".join(f"{w:g}" for w in wl),
-            "values": ", ".join(f"{v * scale:.9g}" for v in val),
-        }
+        return irregular(*read_csv(path), scale)
 
-    scene_dir = SCENE.parent
-    bsdfs = {}
-    for name, m in toml["materials"].items():
-        assert m["type"] == "lambertian", m
-        bsdfs[name] = {
-            "type": "twosided",  # photon's Lambertian surfaces reflect on both sides
-            "bsdf": {"type": "diffuse", "reflectance": spectrum((scene_dir / m["reflectance"]["file"]).resolve())},
-        }
+    scene_dir = scene.parent
+    bsdfs = {name: mitsuba_bsdf(m, scene_dir) for name, m in toml["materials"].items()}
 
     d: dict = {"type": "scene"}
     for i, s in enumerate(toml["surfaces"]):
         shape = s["shape"]
         if shape["type"] == "quad":
             obj = work / f"{s['name']}.obj"
-            write_quad_obj(obj, shape["corners"])
+            write_quad_obj(obj, shape["corners"], scene)
         elif shape["type"] == "mesh":
             obj = (scene_dir / shape["file"]).resolve()
         else:
@@ -141,7 +208,7 @@ def mitsuba_scene_dict(mi, toml: dict, work: Path, spp: int, max_depth: int) -> 
     # Lambertian: Φ = π A ∫L dλ, so L(λ) = Φ S(λ) / (π A ∫S dλ).
     k = power / (math.pi * area_m2 * s_int)
     obj = work / "light.obj"
-    write_quad_obj(obj, corners)
+    write_quad_obj(obj, corners, scene)
     # Mitsuba's area light emits on the side of the shape normal; the OBJ keeps photon's corner
     # order, whose normal (b − a) × (c − a) points down (−y) into the box.
     n = np.cross(np.subtract(corners[1], corners[0]), np.subtract(corners[2], corners[0]))
@@ -212,8 +279,8 @@ PHOTON_CONFIGS = {"default": [], "--estimator expected": ["--estimator", "expect
 
 
 def run_photon(binary: Path, out: Path, photons: int | None, seed: int, time_s: float | None = None,
-               extra: list[str] = ()) -> dict:
-    cmd = [str(binary), "run", str(SCENE), "--out", str(out), "--seed", str(seed), "--quiet", *extra]
+               extra: list[str] = (), scene: Path = SCENE) -> dict:
+    cmd = [str(binary), "run", str(scene), "--out", str(out), "--seed", str(seed), "--quiet", *extra]
     if time_s is not None:
         # --time stops at the first batch boundary after the budget; the scene's own photon count
         # would otherwise cap it, so give a cap that is never reached.
@@ -252,14 +319,14 @@ def quiet_mitsuba_logger(mi) -> None:
 class MitsubaRun:
     """One Mitsuba variant with the scene loaded once; `render` may be called repeatedly."""
 
-    def __init__(self, variant: str, toml: dict, work: Path, spp: int, max_depth: int):
+    def __init__(self, variant: str, toml: dict, work: Path, spp: int, max_depth: int, scene: Path = SCENE):
         import mitsuba as mi
 
         self.mi, self.variant, self.spp = mi, variant, spp
         mi.set_variant(variant)
         quiet_mitsuba_logger(mi)
         t0 = time.perf_counter()
-        scene_dict, self.facts = mitsuba_scene_dict(mi, toml, work, spp, max_depth)
+        scene_dict, self.facts = mitsuba_scene_dict(mi, toml, work, spp, max_depth, scene)
         self.scene = mi.load_dict(scene_dict)
         self.load_seconds = time.perf_counter() - t0
         w, h = self.facts["resolution"]

@@ -2,10 +2,17 @@
 # photon vs Mitsuba 3's particle tracer (`ptracer`) on the measured Cornell box.
 #
 #   bash bench/mitsuba/run.sh [compare.py options, e.g. --spp 8 --ref-photons 40000000]
+#   bash bench/mitsuba/run.sh --scene glossy [glossy.py options, e.g. --runs 16 --spp 8]
 #
 # Makes bench/mitsuba/.venv (Mitsuba from PyPI, CPU variants), builds photon in release mode, then
 # renders the same scene with both and prints the table it also writes to bench/mitsuba/results.md.
 # Images and run outputs go to bench/mitsuba/out/. Not part of `cargo test` or CI.
+#
+# --scene cornell (the default) is that speed and error benchmark (compare.py). --scene glossy
+# runs glossy.py instead: scenes/cornell_glossy.toml (rough aluminium, frosted glass, a rough
+# plastic back wall) with both renderers at equal light paths, compared tile by tile in units of
+# the combined standard error; table in bench/mitsuba/results_glossy.md, images in
+# bench/mitsuba/out/glossy/ (about 6 minutes on 2 cores with the defaults).
 #
 # Mitsuba's llvm_ad_* variants need a libLLVM that can compile Dr.Jit's kernels (LLVM 14 and 15
 # abort with "Cannot select: fmaximum"; 19 works): on Debian 12, `apt-get install libllvm19`.
@@ -17,6 +24,17 @@ ROOT="$(cd "$HERE/../.." && pwd)"
 VENV="$HERE/.venv"
 MITSUBA_VERSION=3.9.1   # drjit 1.5.0 comes with it
 NUMPY_VERSION=2.4.6
+
+SCRIPT=compare.py
+case "${1:-}" in
+    --scene|--scene=*)
+        if [[ "$1" == --scene ]]; then scene="${2:-}"; shift 2 || shift; else scene="${1#--scene=}"; shift; fi
+        case "$scene" in
+            cornell) SCRIPT=compare.py ;;
+            glossy) SCRIPT=glossy.py ;;
+            *) echo "run.sh: --scene must be cornell or glossy, not '$scene'" >&2; exit 2 ;;
+        esac ;;
+esac
 
 if [[ ! -x "$VENV/bin/python" ]]; then
     python3 -m venv "$VENV"
@@ -49,5 +67,5 @@ if [[ -z "${DRJIT_LIBLLVM_PATH:-}" ]]; then
 fi
 
 cd "$ROOT"
-"$VENV/bin/python" "$HERE/compare.py" "$@"
+"$VENV/bin/python" "$HERE/$SCRIPT" "$@"
 echo "run.sh: ${SECONDS} s in all (venv, build and benchmark)"
