@@ -328,6 +328,7 @@ type = "conductor"
 eta = { table = [[400, 1.5], [700, 0.2]] }
 k = 3.2
 specular_reflectance = 0.9
+scatter = { abg = [0.02, 0.001, 2] }
 
 [materials.satin]
 type = "plastic"
@@ -347,6 +348,7 @@ roughness = 0.1
 [materials.crown]
 type = "dielectric"
 ior = { sellmeier = { B = [1.03961212, 0.231792344, 1.01046945], C = [0.00600069867, 0.0200179144, 103.560653] } }
+scatter = { abg = [0.1, 0.05, 1.5] }
 
 [[surfaces]]
 name = "back"
@@ -592,6 +594,10 @@ const TOML_KEYS: &[&str] = &[
     "roughness = 1",
     "roughness = 0.5",
     "roughness = [0.1, 0.3]",
+    "scatter = { abg = [0.1, 0.01, 2] }",
+    "scatter = { abg = [1e300, 1e-300, 8] }",
+    "scatter = { abg = [1e-300, 1e300, 0] }",
+    "scatter = { abg = [] }",
     "metal = \"Au\"",
     "metal = \"Fe\"",
     "k = 1e300",
