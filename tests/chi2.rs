@@ -237,7 +237,12 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian reflect + transmit",
         9,
-        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-d, Mode::Importance, s).unwrap().wi,
+        |s| {
+            Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n, || Vec3A::ZERO)
+                .sample(-d, Mode::Importance, s)
+                .unwrap()
+                .wi
+        },
         |w| {
             let c = w.z as f64;
             (0.3 * c.max(0.0) + 0.5 * (-c).max(0.0)) / (PI * 0.8)
@@ -248,7 +253,12 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian from below",
         10,
-        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-up, Mode::Importance, s).unwrap().wi,
+        |s| {
+            Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n, || Vec3A::ZERO)
+                .sample(-up, Mode::Importance, s)
+                .unwrap()
+                .wi
+        },
         |w| {
             let c = w.z as f64;
             (0.3 * (-c).max(0.0) + 0.5 * c.max(0.0)) / (PI * 0.8)
@@ -348,9 +358,9 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
             eta: Spectrum::Constant(0.96),
             k: Spectrum::Constant(6.69),
             specular_reflectance: Spectrum::Constant(1.0),
-            roughness: alpha,
+            roughness: alpha.into(),
         };
-        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n);
+        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (45.0, 1.0), (80.0, -1.0), (89.0, 1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = Vec3A::new(st as f32, 0.0, side * ct as f32).normalize();
@@ -369,16 +379,16 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
 fn the_lossy_harness_rejects_a_neighbouring_roughness() {
     // Samples of α = 0.5 judged against the pdf of α = 0.4: the lobe's width and lost share differ.
     let n = Vec3A::Z;
-    let metal = |alpha| Material::Conductor {
+    let metal = |alpha: f64| Material::Conductor {
         eta: Spectrum::Constant(0.96),
         k: Spectrum::Constant(6.69),
         specular_reflectance: Spectrum::Constant(1.0),
-        roughness: alpha,
+        roughness: alpha.into(),
     };
     let (sampled, judged) = (metal(0.5), metal(0.4));
     let (a, b) = (
-        Bsdf::<1>::new::<false>(&sampled, prepared(&sampled), &[f64::NAN], n),
-        Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n),
+        Bsdf::<1>::new::<false>(&sampled, prepared(&sampled), &[f64::NAN], n, || Vec3A::ZERO),
+        Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n, || Vec3A::ZERO),
     );
     let wo = Vec3A::new(0.5, 0.0, 0.866).normalize();
     let (_, _, p, _) = chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
@@ -390,7 +400,7 @@ fn rough_glass(alpha: f64) -> Material {
         ior: Spectrum::Constant(1.5),
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
-        roughness: alpha,
+        roughness: alpha.into(),
     }
 }
 
@@ -403,7 +413,8 @@ fn rough_dielectric_reflection_and_transmission_match_their_pdf_from_both_sides(
     let n = frame.n;
     let mut seed = 80;
     for alpha in [0.2, 0.5] {
-        let bsdf = Bsdf::<1>::new::<false>(&rough_glass(alpha), prepared(&rough_glass(alpha)), &[f64::NAN], n);
+        let bsdf =
+            Bsdf::<1>::new::<false>(&rough_glass(alpha), prepared(&rough_glass(alpha)), &[f64::NAN], n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (50.0, 1.0), (85.0, 1.0), (20.0, -1.0), (45.0, -1.0), (70.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -426,8 +437,8 @@ fn plastic_base_matches_its_pdf_with_the_coat_reflection_as_the_lost_share() {
     let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
     let mut seed = 120;
     for (rho, eta) in [(0.8, 1.5), (0.2, 1.5), (0.9, 2.2)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0 };
-        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0.into() };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (60.0, 1.0), (85.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -447,8 +458,8 @@ fn rough_plastic_matches_its_mixture_pdf() {
     let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
     let mut seed = 140;
     for (rho, alpha) in [(0.8, 0.2), (0.3, 0.5)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha };
-        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha.into() };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (60.0, -1.0), (85.0, 1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();

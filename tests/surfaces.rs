@@ -24,17 +24,17 @@ fn prepared(m: &Material) -> &'static Prepared {
     Box::leak(Box::new(Prepared::of(m, (400.0, 700.0))))
 }
 
-fn conductor(n: f64, k: f64, alpha: f64) -> Material {
+fn conductor(n: f64, k: f64, alpha: impl Into<photon::scene::Roughness>) -> Material {
     Material::Conductor {
         eta: Spectrum::Constant(n),
         k: Spectrum::Constant(k),
         specular_reflectance: Spectrum::Constant(1.0),
-        roughness: alpha,
+        roughness: alpha.into(),
     }
 }
 
 fn grey(m: &Material) -> Bsdf<'static, 1> {
-    Bsdf::<1>::new::<false>(m, prepared(m), &[f64::NAN], Vec3A::Z)
+    Bsdf::<1>::new::<false>(m, prepared(m), &[f64::NAN], Vec3A::Z, || Vec3A::ZERO)
 }
 
 fn at(theta_deg: f64, phi_deg: f64) -> Vec3A {
@@ -184,7 +184,7 @@ fn bundled_aluminium_reflects_its_closed_form_at_normal_incidence() {
     let Material::Conductor { eta, k, .. } = m else { panic!("{m:?}") };
     let (n, k) = (eta.eval(550.0), k.eval(550.0));
     let closed = ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
-    let r = Bsdf::<1>::new::<true>(m, prepared(m), &[550.0], Vec3A::Z).albedo(Vec3A::Z).0[0];
+    let r = Bsdf::<1>::new::<true>(m, prepared(m), &[550.0], Vec3A::Z, || Vec3A::ZERO).albedo(Vec3A::Z).0[0];
     assert!((r - closed).abs() < 1e-12, "{r} vs {closed}");
     assert!((r - 0.92).abs() < 0.01, "Al at 550 nm: R = {r}");
 }
@@ -250,12 +250,12 @@ fn the_ledger_is_exact_in_the_cornell_box_with_metal_blocks() {
     }
 }
 
-fn rough_glass(alpha: f64) -> Material {
+fn rough_glass(alpha: impl Into<photon::scene::Roughness>) -> Material {
     Material::Dielectric {
         ior: Spectrum::Constant(1.5),
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
-        roughness: alpha,
+        roughness: alpha.into(),
     }
 }
 
@@ -342,7 +342,7 @@ fn rough_dielectric_white_furnace_reflection_and_refraction_lose_only_what_the_b
 }
 
 fn plastic(rho: f64, eta: f64) -> Material {
-    Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0 }
+    Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0.into() }
 }
 
 #[test]
@@ -393,7 +393,7 @@ fn rough_plastic_never_gains_energy_and_its_samples_weigh_what_its_bsdf_integrat
     // plus the base about the normal).
     let mut seed = 400;
     for (rho, alpha) in [(1.0, 0.1), (1.0, 0.4), (0.5, 0.2)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha };
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha.into() };
         let b = grey(&m);
         for deg in [0.0, 45.0, 75.0, 88.0] {
             let wo = at(deg, 0.0);

@@ -135,7 +135,7 @@ impl Prepared {
         match material {
             Material::Plastic { diffuse_reflectance, ior, roughness } => {
                 let rho_max = diffuse_reflectance.min_max_over(range).1;
-                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, *roughness)) }
+                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, roughness)) }
             }
             _ => Prepared::default(),
         }
@@ -152,13 +152,30 @@ pub struct Bsdf<'a, const N: usize = 4> {
 impl<'a, const N: usize> Bsdf<'a, N> {
     /// `material` (with its `prepared` constants) at wavelengths `lambda` on a surface with unit
     /// geometric normal `n`. A dielectric's index is taken at lane 0: without dispersion every
-    /// lane has the same, and with it a camera path keeps lane 0 alone.
+    /// lane has the same, and with it a camera path keeps lane 0 alone. `tangent` gives the
+    /// surface's tangent there (`Geometry::tangent`), the u axis of an anisotropic roughness; it is
+    /// called only for one, so an isotropic material never fetches it.
     #[inline]
-    pub fn new<const SPECTRAL: bool>(material: &Material, prepared: &'a Prepared, lambda: &[f64; N], n: Vec3A) -> Self {
+    pub fn new<const SPECTRAL: bool>(
+        material: &Material,
+        prepared: &'a Prepared,
+        lambda: &[f64; N],
+        n: Vec3A,
+        tangent: impl FnOnce() -> Vec3A,
+    ) -> Self {
+        // α_x's axis, made unit and perpendicular to n; zero (any axis) for an isotropic lobe.
+        let axis = |r: &crate::scene::Roughness| {
+            if r.is_anisotropic() {
+                microfacet::Frame::new(n, tangent()).t
+            } else {
+                Vec3A::ZERO
+            }
+        };
         let model = match material {
-            Material::Plastic { diffuse_reflectance, .. } => Model::Plastic(plastic::Plastic::new(
+            Material::Plastic { diffuse_reflectance, roughness, .. } => Model::Plastic(plastic::Plastic::new(
                 Lanes::eval::<SPECTRAL>(diffuse_reflectance, lambda),
                 prepared.coat.as_ref().expect("a plastic is prepared (Prepared::of) before it is traced"),
+                axis(roughness),
             )),
             Material::Absorber => Model::Absorber,
             Material::Lambertian { reflectance, transmittance } => Model::Lambertian(lambertian::Lambertian::new(
@@ -172,13 +189,14 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                 eta: Lanes::eval::<SPECTRAL>(eta, lambda),
                 k: Lanes::eval::<SPECTRAL>(k, lambda),
                 tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
-                ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
+                ggx: microfacet::Ggx::of(roughness),
+                tangent: axis(roughness),
             }),
             Material::Dielectric { ior, outside_ior, roughness, .. } => {
                 let (ior, outside_ior) = (ior.eval(lambda[0]), outside_ior.eval(lambda[0]));
-                if *roughness > 0.0 {
-                    let ggx = microfacet::Ggx::new(*roughness, *roughness);
-                    Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx })
+                if let Some(ggx) = microfacet::Ggx::of(roughness) {
+                    let tangent = axis(roughness);
+                    Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx, tangent })
                 } else {
                     Model::Dielectric(dielectric::Dielectric { ior, outside_ior })
                 }

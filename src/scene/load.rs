@@ -1228,24 +1228,48 @@ impl<'s> Loader<'s> {
         }
     }
 
-    /// `roughness`: the GGX α, 0 (smooth) by default and below `SMOOTH_ROUGHNESS`.
-    fn roughness(&self, t: Table<'s, '_>) -> R<f64> {
+    /// `roughness`: the GGX α, or `[αu, αv]` along and across the surface tangent; each in
+    /// [0, 1], 0 (smooth) by default. An α below `SMOOTH_ROUGHNESS` is smooth: both of them, and
+    /// so is the surface; one alone (a perfect brush, `[0, 0.3]`), and it is raised to
+    /// `SMOOTH_ROUGHNESS`, since a microfacet lobe cannot be a delta along one axis only (at
+    /// 10⁻⁴ it is far narrower than any detector resolves).
+    fn roughness(&self, t: Table<'s, '_>) -> R<Roughness> {
+        let alpha = |n: Node<'s, '_>| -> R<f64> {
+            let a = n.f64()?;
+            if !(0.0..=1.0).contains(&a) {
+                return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+            }
+            Ok(a)
+        };
         let roughness = t
             .with("roughness", |n| {
-                if !n.is_number() {
-                    return Err(n.err(
-                        "expected a number (the GGX α); anisotropic roughness [αu, αv] needs a surface tangent \
-                         direction, which photon does not define yet",
-                    ));
+                if n.is_number() {
+                    return Ok(Roughness::isotropic(alpha(n)?));
                 }
-                let a = n.f64()?;
-                if !(0.0..=1.0).contains(&a) {
-                    return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+                if n.array().is_err() {
+                    return Err(
+                        n.err("expected a number (the GGX α) or [αu, αv] (along and across the surface tangent)")
+                    );
                 }
-                Ok(a)
+                match n.each(alpha)?[..] {
+                    [u, v] => Ok(Roughness { u, v }),
+                    ref other => Err(n.err(format!(
+                        "anisotropic roughness is [αu, αv], two numbers (along and across the surface tangent); \
+                         found {}",
+                        other.len()
+                    ))),
+                }
             })?
-            .unwrap_or(0.0);
-        Ok(if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness })
+            .unwrap_or(Roughness::SMOOTH);
+        let smooth = |a: f64| a < crate::scene::SMOOTH_ROUGHNESS;
+        Ok(match (smooth(roughness.u), smooth(roughness.v)) {
+            (true, true) => Roughness::SMOOTH,
+            (false, false) => roughness,
+            _ => Roughness {
+                u: roughness.u.max(crate::scene::SMOOTH_ROUGHNESS),
+                v: roughness.v.max(crate::scene::SMOOTH_ROUGHNESS),
+            },
+        })
     }
 
     fn distribution(&self, n: Node<'s, '_>) -> R<(Distribution, Option<IesLight>)> {

@@ -34,6 +34,41 @@ pub struct Simulation {
 /// direction's f32 resolution, and microfacet sampling loses its precision.
 pub const SMOOTH_ROUGHNESS: f64 = 1e-4;
 
+/// GGX roughness: α along the surface tangent (`u`, see `Geometry::tangent`) and across it in
+/// the surface plane (`v`). Equal: isotropic (the tangent is never needed); both 0: smooth. The
+/// loader gives either both zero or both ≥ `SMOOTH_ROUGHNESS`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Roughness {
+    pub u: f64,
+    pub v: f64,
+}
+
+impl Roughness {
+    pub const SMOOTH: Roughness = Roughness { u: 0.0, v: 0.0 };
+
+    pub fn isotropic(alpha: f64) -> Self {
+        Roughness { u: alpha, v: alpha }
+    }
+
+    /// A microfacet surface, not a smooth (delta) one.
+    #[inline]
+    pub fn is_rough(&self) -> bool {
+        self.u > 0.0 || self.v > 0.0
+    }
+
+    /// Whether the lobe turns with the surface tangent.
+    #[inline]
+    pub fn is_anisotropic(&self) -> bool {
+        self.u != self.v
+    }
+}
+
+impl From<f64> for Roughness {
+    fn from(alpha: f64) -> Self {
+        Roughness::isotropic(alpha)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Material {
     Absorber,
@@ -46,27 +81,27 @@ pub enum Material {
         reflectance: Spectrum,
     },
     /// A metal of complex index `eta` + i`k` (against an outside of index 1), times a factor;
-    /// GGX `roughness` α (0: smooth).
+    /// GGX `roughness` (0: smooth).
     Conductor {
         eta: Spectrum,
         k: Spectrum,
         specular_reflectance: Spectrum,
-        roughness: f64,
+        roughness: Roughness,
     },
     /// A diffuse base of albedo `diffuse_reflectance` under a dielectric coat of index `ior`
-    /// (against 1 outside), smooth or rough (GGX `roughness` α > 0).
+    /// (against 1 outside), smooth or rough (GGX `roughness`).
     Plastic {
         diffuse_reflectance: Spectrum,
         ior: f64,
-        roughness: f64,
+        roughness: Roughness,
     },
     /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
-    /// rough (GGX `roughness` α > 0).
+    /// rough (GGX `roughness`).
     Dielectric {
         ior: Spectrum,
         outside_ior: Spectrum,
         absorption_per_m: Option<Spectrum>,
-        roughness: f64,
+        roughness: Roughness,
     },
 }
 
@@ -327,7 +362,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.spectral |= varies(reflectance);
             }
             Material::Plastic { diffuse_reflectance, roughness, .. } => {
-                if *roughness > 0.0 {
+                if roughness.is_rough() {
                     fx.glossy_reflection = true;
                 } else {
                     fx.specular_reflection = true;
@@ -337,7 +372,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
             }
             Material::Conductor { eta, k, specular_reflectance, roughness } => {
                 if positive(specular_reflectance) {
-                    if *roughness > 0.0 {
+                    if roughness.is_rough() {
                         fx.glossy_reflection = true;
                     } else {
                         fx.specular_reflection = true;
@@ -346,7 +381,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.spectral |= varies(eta) || varies(k) || varies(specular_reflectance);
             }
             Material::Dielectric { ior, outside_ior, absorption_per_m, roughness } => {
-                if *roughness > 0.0 {
+                if roughness.is_rough() {
                     fx.glossy_reflection = true;
                     fx.glossy_transmission = true;
                 } else {
