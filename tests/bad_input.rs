@@ -562,6 +562,54 @@ fn sellmeier_index_squared_not_positive() {
 }
 
 #[test]
+fn anisotropic_roughness_is_two_numbers_each_in_range() {
+    // `roughness = [αu, αv]` on each model that takes it; a bad element is named by its index.
+    let two = "anisotropic roughness is [αu, αv], two numbers (along and across the surface tangent)";
+    let cases: [(&str, &str, &str, &str, String); 7] = [
+        ("one", "conductor\"\neta = 1\nk = 5", "[0.1]", "roughness", format!("{two}; found 1")),
+        ("three", "conductor\"\neta = 1\nk = 5", "[0.1, 0.2, 0.3]", "roughness", format!("{two}; found 3")),
+        (
+            "negative",
+            "conductor\"\neta = 1\nk = 5",
+            "[-0.1, 0.2]",
+            "roughness[0]",
+            "roughness (GGX α) must lie in [0, 1], found -0.1".into(),
+        ),
+        (
+            "string",
+            "conductor\"\neta = 1\nk = 5",
+            "[\"x\", 0.1]",
+            "roughness[0]",
+            "expected a number, found a string".into(),
+        ),
+        (
+            "table",
+            "plastic\"",
+            "{ u = 0.1 }",
+            "roughness",
+            "expected a number (the GGX α) or [αu, αv] (along and across the surface tangent)".into(),
+        ),
+        (
+            "plastic",
+            "plastic\"",
+            "[0.2, 1.5]",
+            "roughness[1]",
+            "roughness (GGX α) must lie in [0, 1], found 1.5".into(),
+        ),
+        ("dielectric", "dielectric\"", "[0.2]", "roughness", format!("{two}; found 1")),
+    ];
+    for (name, kind, value, key, message) in cases {
+        let toml = edit(BASE, "lambertian\"\nreflectance = 0.5", &format!("{kind}\nroughness = {value}"));
+        expect_bad(
+            &format!("roughness-{name}"),
+            &toml,
+            &[],
+            &[&at(line_of(&toml, "roughness"), &format!("materials.white.{key}")), &message],
+        );
+    }
+}
+
+#[test]
 fn glass_names_and_sellmeier_belong_to_dielectrics_only() {
     // A conductor's `eta` is not a glass.
     let toml = edit(

@@ -1,5 +1,5 @@
 //! The three image integrators (light tracing, path tracing, BDPT) estimate the same image: they
-//! are checked against each other on the Cornell box (with white and with rough metal blocks),
+//! are checked against each other on the Cornell box (with white, rough and brushed metal blocks),
 //! on a mirror seen by the camera, on a glass sphere's caustic, and through absorbing water.
 //!
 //! Statistical bounds. Each comparison is a z-score of a difference of two independent estimates
@@ -93,6 +93,34 @@ fn cornell_box_with_rough_metal_blocks_light_path_and_bdpt_images_agree() {
     let toml =
         common::bundled_toml("cornell_metals.toml").replace("resolution = [512, 512]", "resolution = [128, 128]");
     assert_three_integrators_agree(&toml, 2_000_000, 12);
+}
+
+#[test]
+fn cornell_box_with_brushed_metal_blocks_light_path_and_bdpt_images_agree() {
+    // The same blocks brushed, [αu, αv] = [0.05, 0.4] and [0.3, 0.1] along each face's first
+    // edge: each integrator must turn the lobe by the same tangent at its own vertices. Light
+    // tracing and BDPT agree block by block. The path tracer meets the lamp's reflection in the
+    // narrow lobe by rare BSDF samples, so its pixel errors are heavy-tailed and understate a
+    // 16×16 block's spread (path − BDPT reached z = −4.7 in one block with this seed, and 2.0
+    // with 4× the samples); it is held to the whole image and to 32×32 blocks (|z| ≤ 2.5 here).
+    let toml = common::bundled_toml("cornell_metals.toml")
+        .replace("resolution = [512, 512]", "resolution = [128, 128]")
+        .replace("roughness = 0.2", "roughness = [0.05, 0.4]")
+        .replace("roughness = 0.05", "roughness = [0.3, 0.1]");
+    assert!(toml.contains("[0.05, 0.4]") && toml.contains("[0.3, 0.1]"));
+    let (light, light_mean, _) = render(&toml, Integrator::Light, 4_000_000, 14);
+    let (path, path_mean, _) = render(&toml, Integrator::Path, 2_000_000, 14);
+    let (bdpt, bdpt_mean, _) = render(&toml, Integrator::Bdpt, 2_000_000, 14);
+    for (name, m) in [("light", light_mean), ("path", path_mean)] {
+        let z = (m.0 - bdpt_mean.0) / (m.1.powi(2) + bdpt_mean.1.powi(2)).sqrt();
+        assert!(z.abs() < 4.0, "mean Y: {name} {m:?} vs BDPT {bdpt_mean:?}: z = {z:.2}");
+    }
+    for (name, img, block) in [("light", &light, 16), ("path", &path, 32)] {
+        for (k, (x, y)) in blocks(img, block).iter().zip(&blocks(&bdpt, block)).enumerate() {
+            let z = (x.0 - y.0) / (x.1 + y.1).sqrt();
+            assert!(z.abs() < 4.0, "{block}×{block} block {k}: {name} {x:?} vs BDPT {y:?}: z = {z:.2}");
+        }
+    }
 }
 
 #[test]
