@@ -77,27 +77,36 @@ impl Boundable for PaddedTriangle {
     }
 }
 
-/// What a hit on a triangle reads, in one 64-byte cache line: its vertices, its unit normal and
-/// its surface. In a million-triangle mesh every hit is a cache miss; one line per triangle
-/// makes it one miss, not one per table (vertices, normals, surfaces).
+/// What a hit on a triangle reads, in one 64-byte cache line: its vertices, its unit normal,
+/// its surface and its unit tangent. In a million-triangle mesh every hit is a cache miss; one
+/// line per triangle makes it one miss, not one per table (vertices, normals, surfaces). The
+/// tangent's components fill the three words the vec3s leave over, so it costs no space.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct PackedTriangle {
     a: [f32; 3],
     surface: u32,
     b: [f32; 3],
-    _pad_b: u32,
+    tangent_x: f32,
     c: [f32; 3],
-    _pad_c: u32,
+    tangent_y: f32,
     normal: [f32; 3],
-    _pad_n: u32,
+    tangent_z: f32,
 }
 
 impl PackedTriangle {
-    fn new(v: &[Vec3A; 3], surface: u32) -> Self {
-        let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize().to_array();
+    fn new(v: &[Vec3A; 3], surface: u32, tangent: Vec3A) -> Self {
+        let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        // In the triangle's plane, unit; zero where the given direction has no part in it.
+        let t = tangent - n * n.dot(tangent);
+        let t = if t.length_squared() > 1e-12 * tangent.length_squared() && t.length_squared() > 0.0 {
+            t.normalize()
+        } else {
+            Vec3A::ZERO
+        };
         let [a, b, c] = v.map(|p| p.to_array());
-        PackedTriangle { a, surface, b, _pad_b: 0, c, _pad_c: 0, normal, _pad_n: 0 }
+        let normal = n.to_array();
+        PackedTriangle { a, surface, b, tangent_x: t.x, c, tangent_y: t.y, normal, tangent_z: t.z }
     }
 
     #[inline(always)]
@@ -122,7 +131,15 @@ impl Geometry {
     /// the arrays directly.
     /// Fails (with a message for the user) only on a tree too deep to trace.
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Result<Self, String> {
+        let tangents = tris.iter().map(|t| t[1] - t[0]).collect();
+        Self::build_with_tangents(tris, surface, tangents)
+    }
+
+    /// As `build`, with each triangle's surface tangent (the u axis of an anisotropic
+    /// material; `tangent`): `build` takes each triangle's first edge.
+    pub fn build_with_tangents(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>, tangents: Vec<Vec3A>) -> Result<Self, String> {
         assert_eq!(tris.len(), surface.len());
+        assert_eq!(tris.len(), tangents.len());
         if tris.is_empty() {
             return Ok(Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None });
         }
@@ -165,7 +182,12 @@ impl Geometry {
         for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
             *idx = k as u32;
         }
-        let tris = verts.iter().zip(&surface).map(|(v, &s)| PackedTriangle::new(v, s)).collect();
+        let tris = verts
+            .iter()
+            .zip(&surface)
+            .zip(&order)
+            .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
+            .collect();
         Ok(Geometry { tris, surface, local, bvh: Some(bvh) })
     }
 
@@ -187,6 +209,15 @@ impl Geometry {
     #[inline(always)]
     pub fn normal(&self, prim: usize) -> Vec3A {
         Vec3A::from_array(self.tris[prim].normal)
+    }
+
+    /// Unit tangent of triangle `prim` in its plane, the u axis of an anisotropic material
+    /// (how each shape defines it: `scene::shapes::triangulate`); zero where none is defined,
+    /// and then any perpendicular to the normal serves.
+    #[inline(always)]
+    pub fn tangent(&self, prim: usize) -> Vec3A {
+        let t = &self.tris[prim];
+        Vec3A::new(t.tangent_x, t.tangent_y, t.tangent_z)
     }
 
     /// The surface that triangle `prim` belongs to.

@@ -14,7 +14,7 @@ use glam::Vec3A;
 use photon::bsdf::abg::Table;
 use photon::bsdf::{Bsdf, Lobe, Mode, Prepared};
 use photon::sampling::Sampler;
-use photon::scene::{Abg, Material};
+use photon::scene::{Abg, Material, Roughness};
 use photon::spectrum::Spectrum;
 use std::f64::consts::PI;
 
@@ -36,7 +36,7 @@ fn metal(abg: Abg) -> Material {
         eta: Spectrum::Constant(1.2),
         k: Spectrum::Constant(7.0),
         specular_reflectance: Spectrum::Constant(1.0),
-        roughness: 0.0,
+        roughness: Roughness::SMOOTH,
         scatter: Some(abg),
     }
 }
@@ -46,13 +46,13 @@ fn glass(abg: Abg) -> Material {
         ior: Spectrum::Constant(1.5),
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
-        roughness: 0.0,
+        roughness: Roughness::SMOOTH,
         scatter: Some(abg),
     }
 }
 
 fn grey(m: &Material, n: Vec3A) -> Bsdf<'static, 1> {
-    Bsdf::<1>::new::<false>(m, prepared(m), &[f64::NAN], n)
+    Bsdf::<1>::new::<false>(m, prepared(m), &[f64::NAN], n, || Vec3A::X)
 }
 
 /// A unit direction at `theta_deg` from +z in the xz plane, turned by `phi_deg` about z.
@@ -112,6 +112,13 @@ fn tis_table_matches_closed_forms_and_a_quadrature_of_the_formula() {
     for b in [0.0, 0.5, 0.99, 1.0] {
         let want = PI * FLAT.a / (FLAT.b + 1.0);
         assert!((flat.tis(b) - want).abs() < 1e-9 * want, "g = 0, |β₀| = {b}: {} vs {want}", flat.tis(b));
+    }
+    // g = 0 with a tiny B, and with B = 0: still πA/(B + 1).
+    for b in [1e-10, 0.0] {
+        let p = Abg { b, ..FLAT };
+        let want = PI * p.a / (p.b + 1.0);
+        let (table, bound) = (Table::new(&p).tis(0.7), p.normal_incidence_tis());
+        assert!((table - want).abs() < 1e-9 * want && (bound - want).abs() < 1e-9 * want, "B = {b}: {table}, {bound}");
     }
     // g = 2 at normal incidence: πA ln(1 + 1/B).
     let want = PI * NARROW.a * (1.0 + 1.0 / NARROW.b).ln();

@@ -213,7 +213,12 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian reflect + transmit",
         9,
-        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-d, Mode::Importance, s).unwrap().wi,
+        |s| {
+            Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n, || Vec3A::ZERO)
+                .sample(-d, Mode::Importance, s)
+                .unwrap()
+                .wi
+        },
         |w| {
             let c = w.z as f64;
             (0.3 * c.max(0.0) + 0.5 * (-c).max(0.0)) / (PI * 0.8)
@@ -224,7 +229,12 @@ fn lambertian_scattering_reflects_and_transmits_by_its_pdf() {
     assert_matches(
         "lambertian from below",
         10,
-        |s| Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n).sample(-up, Mode::Importance, s).unwrap().wi,
+        |s| {
+            Bsdf::<1>::new::<true>(&m, prepared(&m), &[550.0], n, || Vec3A::ZERO)
+                .sample(-up, Mode::Importance, s)
+                .unwrap()
+                .wi
+        },
         |w| {
             let c = w.z as f64;
             (0.3 * (-c).max(0.0) + 0.5 * c.max(0.0)) / (PI * 0.8)
@@ -324,10 +334,10 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
             eta: Spectrum::Constant(0.96),
             k: Spectrum::Constant(6.69),
             specular_reflectance: Spectrum::Constant(1.0),
-            roughness: alpha,
+            roughness: alpha.into(),
             scatter: None,
         };
-        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n);
+        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (45.0, 1.0), (80.0, -1.0), (89.0, 1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = Vec3A::new(st as f32, 0.0, side * ct as f32).normalize();
@@ -346,17 +356,17 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
 fn the_lossy_harness_rejects_a_neighbouring_roughness() {
     // Samples of α = 0.5 judged against the pdf of α = 0.4: the lobe's width and lost share differ.
     let n = Vec3A::Z;
-    let metal = |alpha| Material::Conductor {
+    let metal = |alpha: f64| Material::Conductor {
         eta: Spectrum::Constant(0.96),
         k: Spectrum::Constant(6.69),
         specular_reflectance: Spectrum::Constant(1.0),
-        roughness: alpha,
+        roughness: alpha.into(),
         scatter: None,
     };
     let (sampled, judged) = (metal(0.5), metal(0.4));
     let (a, b) = (
-        Bsdf::<1>::new::<false>(&sampled, prepared(&sampled), &[f64::NAN], n),
-        Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n),
+        Bsdf::<1>::new::<false>(&sampled, prepared(&sampled), &[f64::NAN], n, || Vec3A::ZERO),
+        Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n, || Vec3A::ZERO),
     );
     let wo = Vec3A::new(0.5, 0.0, 0.866).normalize();
     let (_, _, p, _) = chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
@@ -368,7 +378,7 @@ fn rough_glass(alpha: f64) -> Material {
         ior: Spectrum::Constant(1.5),
         outside_ior: Spectrum::Constant(1.0),
         absorption_per_m: None,
-        roughness: alpha,
+        roughness: alpha.into(),
         scatter: None,
     }
 }
@@ -382,7 +392,8 @@ fn rough_dielectric_reflection_and_transmission_match_their_pdf_from_both_sides(
     let n = frame.n;
     let mut seed = 80;
     for alpha in [0.2, 0.5] {
-        let bsdf = Bsdf::<1>::new::<false>(&rough_glass(alpha), prepared(&rough_glass(alpha)), &[f64::NAN], n);
+        let bsdf =
+            Bsdf::<1>::new::<false>(&rough_glass(alpha), prepared(&rough_glass(alpha)), &[f64::NAN], n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (50.0, 1.0), (85.0, 1.0), (20.0, -1.0), (45.0, -1.0), (70.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -405,8 +416,8 @@ fn plastic_base_matches_its_pdf_with_the_coat_reflection_as_the_lost_share() {
     let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
     let mut seed = 120;
     for (rho, eta) in [(0.8, 1.5), (0.2, 1.5), (0.9, 2.2)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0 };
-        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: eta, roughness: 0.0.into() };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (60.0, 1.0), (85.0, -1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
@@ -426,14 +437,160 @@ fn rough_plastic_matches_its_mixture_pdf() {
     let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
     let mut seed = 140;
     for (rho, alpha) in [(0.8, 0.2), (0.3, 0.5)] {
-        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha };
-        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n);
+        let m = Material::Plastic { diffuse_reflectance: Spectrum::Constant(rho), ior: 1.5, roughness: alpha.into() };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n, || Vec3A::ZERO);
         for (deg, side) in [(0.0f64, 1.0f32), (60.0, -1.0), (85.0, 1.0)] {
             let (st, ct) = deg.to_radians().sin_cos();
             let wo = frame.to_world(Vec3A::new(st as f32, 0.0, side * ct as f32)).normalize();
             seed += 1;
             assert_matches_lossy(
                 &format!("rough plastic ρ = {rho}, α = {alpha}, θ_o = {deg}°, side {side}"),
+                seed,
+                |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
+                |wi| bsdf.pdf(wo, wi),
+            );
+        }
+    }
+}
+
+/// The anisotropic roughnesses tested, [αu, αv]: a brush narrow along the tangent and wide across
+/// it, and the reverse, milder.
+const ANISOTROPIC: [(f64, f64); 2] = [(0.05, 0.4), (0.3, 0.1)];
+
+/// A frame tilted off the harness's pole (see the isotropic tests), whose x is the surface tangent.
+fn tilted_frame() -> photon::bsdf::microfacet::Frame {
+    photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::new(0.6, 0.7, 0.2))
+}
+
+/// The direction at polar angle `theta_deg` from `frame.n` (`side` −1: below) and azimuth `phi_deg`
+/// from the tangent `frame.t`.
+fn toward(frame: &photon::bsdf::microfacet::Frame, theta_deg: f64, phi_deg: f64, side: f32) -> Vec3A {
+    let (st, ct) = theta_deg.to_radians().sin_cos();
+    let (sp, cp) = phi_deg.to_radians().sin_cos();
+    frame.to_world(Vec3A::new((st * cp) as f32, (st * sp) as f32, side * ct as f32)).normalize()
+}
+
+fn anisotropic_metal(au: f64, av: f64) -> Material {
+    Material::Conductor {
+        eta: Spectrum::Constant(0.96),
+        k: Spectrum::Constant(6.69),
+        specular_reflectance: Spectrum::Constant(1.0),
+        roughness: photon::scene::Roughness { u: au, v: av },
+        scatter: None,
+    }
+}
+
+#[test]
+fn anisotropic_ggx_visible_normals_match_their_density_at_every_azimuth() {
+    // An anisotropic lobe depends on the azimuth of w about the α_x axis; 89° is grazing.
+    use photon::bsdf::microfacet::Ggx;
+    let frame = photon::bsdf::microfacet::Frame::new(Vec3A::new(0.3, -0.5, 0.8).normalize(), Vec3A::X);
+    let mut seed = 500;
+    for (ax, ay) in ANISOTROPIC {
+        let g = Ggx::new(ax, ay);
+        for (deg, phi) in [(0.0f64, 0.0f64), (40.0, 30.0), (70.0, 90.0), (80.0, 135.0), (89.0, 60.0), (89.0, 0.0)] {
+            let (st, ct) = deg.to_radians().sin_cos();
+            let (sp, cp) = phi.to_radians().sin_cos();
+            let w = Vec3A::new((st * cp) as f32, (st * sp) as f32, ct as f32).normalize();
+            seed += 1;
+            assert_matches(
+                &format!("GGX visible normals α = ({ax}, {ay}), θ = {deg}°, φ = {phi}°"),
+                seed,
+                |s| {
+                    let (a, b) = uv(s);
+                    frame.to_world(g.sample_visible(w, [a, b]))
+                },
+                |m| g.visible_pdf(w, frame.to_local(m)),
+            );
+        }
+    }
+}
+
+#[test]
+fn anisotropic_rough_conductor_matches_its_pdf_at_every_azimuth_from_both_sides() {
+    let frame = tilted_frame();
+    let mut seed = 540;
+    for (au, av) in ANISOTROPIC {
+        let metal = anisotropic_metal(au, av);
+        let bsdf = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], frame.n, || frame.t);
+        for (deg, phi, side) in
+            [(0.0f64, 0.0f64, 1.0f32), (45.0, 30.0, 1.0), (60.0, 90.0, -1.0), (80.0, 135.0, 1.0), (87.0, 60.0, -1.0)]
+        {
+            let wo = toward(&frame, deg, phi, side);
+            seed += 1;
+            assert_matches_lossy(
+                &format!("rough conductor α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}"),
+                seed,
+                |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
+                |wi| bsdf.pdf(wo, wi),
+            );
+        }
+    }
+}
+
+#[test]
+fn the_lossy_harness_rejects_a_lobe_turned_about_the_normal() {
+    // Samples with the tangent along t judged against the pdf with it 30° away: same widths,
+    // another orientation.
+    let frame = tilted_frame();
+    let metal = anisotropic_metal(0.05, 0.4);
+    let turned = frame.to_world(Vec3A::new(30f32.to_radians().cos(), 30f32.to_radians().sin(), 0.0));
+    let a = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], frame.n, || frame.t);
+    let b = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], frame.n, || turned);
+    let wo = toward(&frame, 40.0, 20.0, 1.0);
+    let (_, _, p, _) = chi2_lossy(590, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
+    assert!(p < 1e-12, "p = {p}");
+}
+
+#[test]
+fn anisotropic_rough_dielectric_matches_its_pdf_at_every_azimuth_from_both_sides() {
+    // Reflection and refraction together (the refracted lobe is the narrower), from outside and
+    // from inside (total internal reflection beyond ~42°), in both modes.
+    let frame = tilted_frame();
+    let mut seed = 600;
+    for (au, av) in ANISOTROPIC {
+        let glass = Material::Dielectric {
+            ior: Spectrum::Constant(1.5),
+            outside_ior: Spectrum::Constant(1.0),
+            absorption_per_m: None,
+            roughness: photon::scene::Roughness { u: au, v: av },
+            scatter: None,
+        };
+        let bsdf = Bsdf::<1>::new::<false>(&glass, prepared(&glass), &[f64::NAN], frame.n, || frame.t);
+        for (deg, phi, side) in
+            [(0.0f64, 0.0f64, 1.0f32), (50.0, 30.0, 1.0), (85.0, 135.0, 1.0), (30.0, 60.0, -1.0), (60.0, 100.0, -1.0)]
+        {
+            let wo = toward(&frame, deg, phi, side);
+            for mode in [Mode::Importance, Mode::Radiance] {
+                seed += 1;
+                assert_matches_lossy(
+                    &format!("rough dielectric α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}, {mode:?}"),
+                    seed,
+                    |s| bsdf.sample(wo, mode, s).map(|x| x.wi),
+                    |wi| bsdf.pdf(wo, wi),
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn anisotropic_rough_plastic_matches_its_mixture_pdf_at_every_azimuth() {
+    // The base's directions follow the coat's transmittance, which now varies with azimuth too.
+    let frame = tilted_frame();
+    let mut seed = 660;
+    for (au, av) in ANISOTROPIC {
+        let m = Material::Plastic {
+            diffuse_reflectance: Spectrum::Constant(0.6),
+            ior: 1.5,
+            roughness: photon::scene::Roughness { u: au, v: av },
+        };
+        let bsdf = Bsdf::<1>::new::<false>(&m, prepared(&m), &[f64::NAN], frame.n, || frame.t);
+        for (deg, phi, side) in [(0.0f64, 0.0f64, 1.0f32), (45.0, 30.0, 1.0), (70.0, 90.0, -1.0), (85.0, 135.0, 1.0)] {
+            let wo = toward(&frame, deg, phi, side);
+            seed += 1;
+            assert_matches_lossy(
+                &format!("rough plastic α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
                 |wi| bsdf.pdf(wo, wi),

@@ -16,6 +16,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("parallel_plates", "grey", ""),
         ("office", "grey", "diffuse_reflection"),
         ("luminaire", "grey", ""),
+        ("reflector", "spectral", "spectral, specular_reflection, glossy_reflection"),
         (
             "glass",
             "spectral",

@@ -11,10 +11,11 @@
 //! The reflectance R (mirror ρ, metal Fresnel, dielectric R or 1 − R) is the one at the angle the
 //! light arrives from: `wo` for particles (importance), `wi` for camera paths (radiance).
 //!
-//! The lobe is tabulated once per run (`Table`), piecewise linear in s = |β − β₀|² over 2048
-//! log-spaced cells (within 1e-4 of the formula), and that table *is* the model: f, its sampling
-//! by inverse CDF and its TIS all use it, so sampling is exact (each sample weighs R) and the
-//! energy split is exact to the TIS table's interpolation (1e-5).
+//! The lobe is tabulated once per run (`Table`), piecewise linear in s = |β − β₀|² over a first
+//! cell in the flat core and 2047 log-spaced ones (about 10⁻⁴ of the formula for g ≤ 2.5, 10⁻³
+//! at g = 8), and that table *is* the model: f, its sampling by inverse CDF and its TIS all use
+//! it, so sampling is exact (each sample weighs R) and the energy split is exact to the TIS
+//! table's interpolation (tests/abg.rs holds it to 2·10⁻⁴).
 
 use glam::Vec3A;
 use std::f64::consts::PI;
@@ -52,8 +53,8 @@ pub struct Table {
 
 impl Table {
     pub fn new(abg: &Abg) -> Table {
-        // From far inside the flat core (knee·1e-3) to s = 4.
-        let s_min = (abg.knee() * 1e-3).powi(2).min(1e-6);
+        // From inside the flat core to s = 4.
+        let s_min = abg.flat_below();
         let ln_ratio = (4.0 / s_min).ln() / (LOBE_CELLS - 1) as f64;
         let mut s: Vec<f64> =
             std::iter::once(0.0).chain((0..LOBE_CELLS).map(|k| s_min * (k as f64 * ln_ratio).exp())).collect();

@@ -3,7 +3,8 @@
 //! masking–shadowing, sampled by visible normals), times a `specular_reflectance` factor.
 //! Rough: f = D(m) F(wo·m) G2(wo, wi) / (4 cosθ_o cosθ_i), m the half vector; sampling m from
 //! the visible normals gives the weight f cosθ_i / pdf = F(wo·m) G2/G1(wo) ≤ 1. Both sides
-//! reflect alike (Mitsuba's `twosided`): the frame is turned to the side `wo` lies on.
+//! reflect alike (Mitsuba's `twosided`): the frame is turned to the side `wo` lies on, its x
+//! along the surface tangent (anisotropic α: α_x along it, α_y across).
 
 use glam::Vec3A;
 
@@ -80,6 +81,8 @@ pub struct Conductor<const N: usize> {
     pub tint: Lanes<N>,
     /// None: smooth.
     pub ggx: Option<Ggx>,
+    /// The unit surface tangent, α_x's axis; zero for an isotropic lobe.
+    pub tangent: Vec3A,
 }
 
 impl<const N: usize> Conductor<N> {
@@ -102,7 +105,7 @@ impl<const N: usize> Conductor<N> {
     #[inline]
     pub fn f(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Factored<N> {
         let Some(ggx) = self.ggx else { return Factored::ZERO };
-        let frame = Frame::facing(n, wo);
+        let frame = Frame::facing_along(n, self.tangent, wo);
         let (o, i) = (frame.to_local(wo), frame.to_local(wi));
         if !(o.z > 0.0 && i.z > 0.0) {
             return Factored::ZERO;
@@ -115,7 +118,7 @@ impl<const N: usize> Conductor<N> {
     #[inline]
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
         let Some(ggx) = self.ggx else { return 0.0 };
-        let frame = Frame::facing(n, wo);
+        let frame = Frame::facing_along(n, self.tangent, wo);
         let (o, i) = (frame.to_local(wo), frame.to_local(wi));
         if !(o.z > 0.0 && i.z > 0.0) {
             return 0.0;
@@ -137,7 +140,7 @@ impl<const N: usize> Conductor<N> {
                 pdf: 0.0,
             });
         };
-        let frame = Frame::facing(n, wo);
+        let frame = Frame::facing_along(n, self.tangent, wo);
         let o = frame.to_local(wo);
         if !(o.z > 0.0) {
             return None;
@@ -167,7 +170,7 @@ impl<const N: usize> Conductor<N> {
                 (r, r)
             }
             Some(ggx) => {
-                let frame = Frame::facing(n, wo);
+                let frame = Frame::facing_along(n, self.tangent, wo);
                 let (o, i) = (frame.to_local(wo), frame.to_local(wi));
                 let m = (o + i).normalize();
                 let t = self.reflectance(o.dot(m) as f64) * (ggx.g2(o, i) / ggx.g1(o));

@@ -8,6 +8,8 @@
 use glam::Vec3A;
 use std::f64::consts::PI;
 
+use crate::scene::Roughness;
+
 /// An orthonormal frame: `t` (the α_x axis), `b`, `n`.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
@@ -40,7 +42,14 @@ impl Frame {
     /// reflect alike from both sides.
     #[inline]
     pub fn facing(n: Vec3A, w: Vec3A) -> Self {
-        let f = Frame::new(n, Vec3A::ZERO);
+        Frame::facing_along(n, Vec3A::ZERO, w)
+    }
+
+    /// The same with its x along `tangent` (an anisotropic lobe's α_x axis; zero for any, as
+    /// `facing` takes). Turning to the other side keeps x, so α_x stays along the tangent.
+    #[inline]
+    pub fn facing_along(n: Vec3A, tangent: Vec3A, w: Vec3A) -> Self {
+        let f = Frame::new(n, tangent);
         if w.dot(n) >= 0.0 {
             f
         } else {
@@ -64,6 +73,13 @@ pub struct Ggx {
 impl Ggx {
     pub fn new(alpha_x: f64, alpha_y: f64) -> Self {
         Ggx { alpha_x, alpha_y }
+    }
+
+    /// The distribution of a material's `roughness`, α_x along the surface tangent (αu); None
+    /// for a smooth surface.
+    #[inline]
+    pub fn of(roughness: &Roughness) -> Option<Self> {
+        roughness.is_rough().then(|| Ggx::new(roughness.u, roughness.v))
     }
 
     /// D(m) = 1 / (π α_x α_y cos⁴θ_m (1 + tan²θ_m (cos²φ/α_x² + sin²φ/α_y²))²), per unit projected area.

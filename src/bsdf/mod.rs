@@ -44,9 +44,9 @@ pub enum Lobe {
     /// Refraction through a dielectric.
     SpecularTransmission,
     /// Microfacet reflection (a rough metal, dielectric or plastic coat, with a rough plastic's
-    /// base: its sample is weighted by the whole f).
+    /// base: its sample is weighted by the whole f), or ABg scatter about the mirror direction.
     GlossyReflection,
-    /// Microfacet refraction (a rough dielectric).
+    /// Microfacet refraction (a rough dielectric), or ABg scatter about the refracted direction.
     GlossyTransmission,
 }
 
@@ -118,7 +118,8 @@ enum Model<'a, const N: usize> {
 }
 
 /// What a model needs worked out once per run rather than at every hit: a plastic's coat
-/// averages. Built per material by `Prepared::of`; the default serves every other model.
+/// averages, an ABg lobe's tables. Built per material by `Prepared::of`; the default serves
+/// every other model.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Prepared {
     coat: Option<plastic::Coat>,
@@ -130,7 +131,17 @@ impl Prepared {
     /// a few tenths of a second).
     pub fn for_scene(scene: &crate::scene::Scene) -> Vec<Prepared> {
         let range = scene.simulation.wavelength_range_nm;
-        (0..scene.surfaces.len()).map(|s| Prepared::of(scene.material_of(s), range)).collect()
+        // Once per material, however many surfaces share it.
+        let mut by_material: Vec<Option<Prepared>> = vec![None; scene.materials.len()];
+        scene
+            .surfaces
+            .iter()
+            .map(|s| {
+                by_material[s.material]
+                    .get_or_insert_with(|| Prepared::of(&scene.materials[s.material].material, range))
+                    .clone()
+            })
+            .collect()
     }
 
     /// For `material` over the simulated wavelength range `range` (nm).
@@ -138,7 +149,7 @@ impl Prepared {
         match material {
             Material::Plastic { diffuse_reflectance, ior, roughness } => {
                 let rho_max = diffuse_reflectance.min_max_over(range).1;
-                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, *roughness)), abg: None }
+                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, roughness)), abg: None }
             }
             Material::Mirror { scatter: Some(s), .. }
             | Material::Conductor { scatter: Some(s), .. }
@@ -163,13 +174,30 @@ pub struct Bsdf<'a, const N: usize = 4> {
 impl<'a, const N: usize> Bsdf<'a, N> {
     /// `material` (with its `prepared` constants) at wavelengths `lambda` on a surface with unit
     /// geometric normal `n`. A dielectric's index is taken at lane 0: without dispersion every
-    /// lane has the same, and with it a camera path keeps lane 0 alone.
+    /// lane has the same, and with it a camera path keeps lane 0 alone. `tangent` gives the
+    /// surface's tangent there (`Geometry::tangent`), the u axis of an anisotropic roughness; it is
+    /// called only for one, so an isotropic material never fetches it.
     #[inline]
-    pub fn new<const SPECTRAL: bool>(material: &Material, prepared: &'a Prepared, lambda: &[f64; N], n: Vec3A) -> Self {
+    pub fn new<const SPECTRAL: bool>(
+        material: &Material,
+        prepared: &'a Prepared,
+        lambda: &[f64; N],
+        n: Vec3A,
+        tangent: impl FnOnce() -> Vec3A,
+    ) -> Self {
+        // α_x's axis, made unit and perpendicular to n; zero (any axis) for an isotropic lobe.
+        let axis = |r: &crate::scene::Roughness| {
+            if r.is_anisotropic() {
+                microfacet::Frame::new(n, tangent()).t
+            } else {
+                Vec3A::ZERO
+            }
+        };
         let model = match material {
-            Material::Plastic { diffuse_reflectance, .. } => Model::Plastic(plastic::Plastic::new(
+            Material::Plastic { diffuse_reflectance, roughness, .. } => Model::Plastic(plastic::Plastic::new(
                 Lanes::eval::<SPECTRAL>(diffuse_reflectance, lambda),
                 prepared.coat.as_ref().expect("a plastic is prepared (Prepared::of) before it is traced"),
+                axis(roughness),
             )),
             Material::Absorber => Model::Absorber,
             Material::Lambertian { reflectance, transmittance } => Model::Lambertian(lambertian::Lambertian::new(
@@ -190,7 +218,8 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                     eta: Lanes::eval::<SPECTRAL>(eta, lambda),
                     k: Lanes::eval::<SPECTRAL>(k, lambda),
                     tint: Lanes::eval::<SPECTRAL>(specular_reflectance, lambda),
-                    ggx: (*roughness > 0.0).then(|| microfacet::Ggx::new(*roughness, *roughness)),
+                    ggx: microfacet::Ggx::of(roughness),
+                    tangent: axis(roughness),
                 };
                 match scatter {
                     None => Model::Conductor(metal),
@@ -204,9 +233,9 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                 if scatter.is_some() {
                     let base = abg::Base::Dielectric { ior, outside_ior };
                     Model::Abg(abg::AbgSurface { base, table: abg_table(prepared) })
-                } else if *roughness > 0.0 {
-                    let ggx = microfacet::Ggx::new(*roughness, *roughness);
-                    Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx })
+                } else if let Some(ggx) = microfacet::Ggx::of(roughness) {
+                    let tangent = axis(roughness);
+                    Model::RoughDielectric(rough_dielectric::RoughDielectric { ior, outside_ior, ggx, tangent })
                 } else {
                     Model::Dielectric(dielectric::Dielectric { ior, outside_ior })
                 }
@@ -288,7 +317,8 @@ impl<'a, const N: usize> Bsdf<'a, N> {
     }
 
     /// Whether f has a part other directions can be connected to (light samples, camera splats,
-    /// BDPT connections): false for mirrors, smooth metals and dielectrics, and absorbers.
+    /// BDPT connections): false for mirrors, smooth metals and dielectrics (without ABg scatter),
+    /// and absorbers.
     #[inline]
     pub fn is_connectible(&self) -> bool {
         match &self.model {

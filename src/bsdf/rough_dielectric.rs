@@ -23,6 +23,8 @@ pub struct RoughDielectric {
     pub ior: f64,
     pub outside_ior: f64,
     pub ggx: Ggx,
+    /// The unit surface tangent, α_x's axis; zero for an isotropic lobe.
+    pub tangent: Vec3A,
 }
 
 /// `wo` and `wi` in the frame on `wo`'s side, with the indices on each side.
@@ -36,7 +38,7 @@ struct Local {
 impl RoughDielectric {
     #[inline]
     fn local(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> Local {
-        let frame = Frame::facing(n, wo);
+        let frame = Frame::facing_along(n, self.tangent, wo);
         let (eta_o, eta_t) = etas(self.ior, self.outside_ior, -wo, n);
         Local { o: frame.to_local(wo), i: frame.to_local(wi), eta_o, eta_t }
     }
@@ -108,7 +110,7 @@ impl RoughDielectric {
 
     #[inline]
     pub fn sample<const N: usize>(&self, wo: Vec3A, n: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
-        let frame = Frame::facing(n, wo);
+        let frame = Frame::facing_along(n, self.tangent, wo);
         let (eta_o, eta_t) = etas(self.ior, self.outside_ior, -wo, n);
         let o = frame.to_local(wo);
         if !(o.z > 0.0) {

@@ -328,8 +328,10 @@ impl Kernel<'_> {
                 // once here for both the camera splat and the scattering event.
                 let wo = -dir;
                 let prep = &prepared[surface as usize];
-                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], n);
-                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, n));
+                // The tangent is read only for an anisotropic material (from the line `n` came from).
+                let tangent = || geo.tangent(prim);
+                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], n, tangent);
+                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, n, tangent));
                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                     if bsdf.is_connectible() {
                         // f(wo, ω)·|cosθ_ω| toward the camera: the lanes' part in f64, the angular in f32.

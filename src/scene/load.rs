@@ -146,6 +146,8 @@ struct Shaped {
     name: String,
     material: usize,
     tris: Vec<[DVec3; 3]>,
+    /// Each triangle's surface tangent (`shapes::Triangles::tangents`).
+    tangents: Vec<DVec3>,
     light: Option<usize>,
     /// Resolution and frame (m) of its irradiance map, and a mesh's texture coordinates.
     map: Option<([usize; 2], Option<[DVec3; 3]>)>,
@@ -160,6 +162,8 @@ struct Shaped {
 struct Assembled {
     tris: Vec<[Vec3A; 3]>,
     tri_surface: Vec<u32>,
+    /// Each triangle's unit surface tangent (zero where it has none).
+    tri_tangent: Vec<Vec3A>,
     surfaces: Vec<Surface>,
     /// Each light's surface and its area (m²); None for a point light.
     light_surface: Vec<Option<(usize, f64)>>,
@@ -212,7 +216,7 @@ impl<'s> Loader<'s> {
         let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut warnings)?;
         let point_positions = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
         let (origin_m, span_m) = bounding_centre(&shaped, &point_positions);
-        let Assembled { tris, tri_surface, surfaces, light_surface, surface_keys } =
+        let Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys } =
             self.single_precision_surfaces(shaped, origin_m, span_m, light_specs.len(), &mut warnings)?;
         let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
@@ -227,7 +231,8 @@ impl<'s> Loader<'s> {
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
         self.check_ies_c0_planes(&lights, &tris, &tri_surface)?;
         let reference = self.reference(root, &surfaces)?;
-        let geometry = Geometry::build(tris, tri_surface).map_err(|m| InputError::new(self.src.file, "", None, m))?;
+        let geometry = Geometry::build_with_tangents(tris, tri_surface, tri_tangent)
+            .map_err(|m| InputError::new(self.src.file, "", None, m))?;
         let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
         self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
         Ok(Scene {
@@ -513,7 +518,8 @@ impl<'s> Loader<'s> {
         let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
-            let (t, uvs) = shapes::triangulate(&e.shape, self.src, &key, e.shape_line, warnings)?;
+            let shapes::Triangles { tris: t, tangents, uvs } =
+                shapes::triangulate(&e.shape, self.src, &key, e.shape_line, warnings)?;
             let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
             if let (Some((_, None)), None) = (&e.map, &uvs) {
                 return Err(InputError::new(
@@ -547,6 +553,7 @@ impl<'s> Loader<'s> {
                 name: e.name.clone(),
                 material: e.material,
                 tris,
+                tangents,
                 light: None,
                 map: e.map.map(|(r, f)| (r, f.map(|f| f.map(|v| v * unit_m)))),
                 uvs,
@@ -591,13 +598,15 @@ impl<'s> Loader<'s> {
                     point_positions.push(Some((p, axis)));
                 }
                 other => {
-                    let (t, _) = shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
+                    let shapes::Triangles { tris: t, tangents, .. } =
+                        shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
                     shaped.push(Shaped {
                         name,
                         material,
                         tris,
+                        tangents,
                         light: Some(i),
                         map: None,
                         uvs: None,
@@ -624,6 +633,7 @@ impl<'s> Loader<'s> {
     ) -> R<Assembled> {
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
         let mut tri_surface: Vec<u32> = Vec::new();
+        let mut tri_tangent: Vec<Vec3A> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
         let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_count];
         let (mut texels, mut spectrum_bins) = (0, 0);
@@ -634,9 +644,11 @@ impl<'s> Loader<'s> {
             let (kept, kept_index) = self.single_precision(local, &sh.key, sh.line, span_m, warnings)?;
             let id = surfaces.len();
             let area: f64 = kept.iter().map(|m| 0.5 * (m[1] - m[0]).cross(m[2] - m[0]).length()).sum();
-            for m in &kept {
+            for (m, &k) in kept.iter().zip(&kept_index) {
                 tris.push(m.map(|v| v.as_vec3a()));
                 tri_surface.push(id as u32);
+                // Unit in f64 first: a tangent scaled by a tiny or huge transform stays representable.
+                tri_tangent.push(sh.tangents[k].normalize_or_zero().as_vec3a());
             }
             let map = sh.map.map(|(resolution, frame)| {
                 let map = match (frame, &sh.uvs) {
@@ -668,7 +680,7 @@ impl<'s> Loader<'s> {
                 light_surface[l] = Some((id, area));
             }
         }
-        Ok(Assembled { tris, tri_surface, surfaces, light_surface, surface_keys })
+        Ok(Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys })
     }
 
     /// Each light at the recentred origin with its power in watts (from watts, lumens, or
@@ -1129,7 +1141,10 @@ impl<'s> Loader<'s> {
             }
             "mirror" => {
                 t.allow(&["type", "reflectance", "scatter"])?;
-                Ok(Material::Mirror { reflectance: fraction("reflectance", 1.0)?, scatter: self.scatter(t, 0.0)? })
+                Ok(Material::Mirror {
+                    reflectance: fraction("reflectance", 1.0)?,
+                    scatter: self.scatter(t, Roughness::SMOOTH)?,
+                })
             }
             "conductor" => {
                 t.allow(&["type", "metal", "eta", "k", "roughness", "specular_reflectance", "scatter"])?;
@@ -1218,31 +1233,55 @@ impl<'s> Loader<'s> {
         }
     }
 
-    /// `roughness`: the GGX α, 0 (smooth) by default and below `SMOOTH_ROUGHNESS`.
-    fn roughness(&self, t: Table<'s, '_>) -> R<f64> {
+    /// `roughness`: the GGX α, or `[αu, αv]` along and across the surface tangent; each in
+    /// [0, 1], 0 (smooth) by default. An α below `SMOOTH_ROUGHNESS` is smooth: both of them, and
+    /// so is the surface; one alone (a perfect brush, `[0, 0.3]`), and it is raised to
+    /// `SMOOTH_ROUGHNESS`, since a microfacet lobe cannot be a delta along one axis only (at
+    /// 10⁻⁴ it is far narrower than any detector resolves).
+    fn roughness(&self, t: Table<'s, '_>) -> R<Roughness> {
+        let alpha = |n: Node<'s, '_>| -> R<f64> {
+            let a = n.f64()?;
+            if !(0.0..=1.0).contains(&a) {
+                return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+            }
+            Ok(a)
+        };
         let roughness = t
             .with("roughness", |n| {
-                if !n.is_number() {
-                    return Err(n.err(
-                        "expected a number (the GGX α); anisotropic roughness [αu, αv] needs a surface tangent \
-                         direction, which photon does not define yet",
-                    ));
+                if n.is_number() {
+                    return Ok(Roughness::isotropic(alpha(n)?));
                 }
-                let a = n.f64()?;
-                if !(0.0..=1.0).contains(&a) {
-                    return Err(n.err(format!("roughness (GGX α) must lie in [0, 1], found {a}")));
+                if n.array().is_err() {
+                    return Err(
+                        n.err("expected a number (the GGX α) or [αu, αv] (along and across the surface tangent)")
+                    );
                 }
-                Ok(a)
+                match n.each(alpha)?[..] {
+                    [u, v] => Ok(Roughness { u, v }),
+                    ref other => Err(n.err(format!(
+                        "anisotropic roughness is [αu, αv], two numbers (along and across the surface tangent); \
+                         found {}",
+                        other.len()
+                    ))),
+                }
             })?
-            .unwrap_or(0.0);
-        Ok(if roughness < crate::scene::SMOOTH_ROUGHNESS { 0.0 } else { roughness })
+            .unwrap_or(Roughness::SMOOTH);
+        let smooth = |a: f64| a < crate::scene::SMOOTH_ROUGHNESS;
+        Ok(match (smooth(roughness.u), smooth(roughness.v)) {
+            (true, true) => Roughness::SMOOTH,
+            (false, false) => roughness,
+            _ => Roughness {
+                u: roughness.u.max(crate::scene::SMOOTH_ROUGHNESS),
+                v: roughness.v.max(crate::scene::SMOOTH_ROUGHNESS),
+            },
+        })
     }
 
-    /// `scatter = { abg = [A, B, g] }` on a smooth surface: A > 0, B > 0, 0 ≤ g ≤ 8, a lobe
-    /// photon can resolve, and at most all of the specular power scattered at any incidence.
-    fn scatter(&self, t: Table<'s, '_>, roughness: f64) -> R<Option<Abg>> {
+    /// `scatter = { abg = [A, B, g] }` on a smooth surface: A > 0, 0 < B ≤ 1e100 (or B = 0 with
+    /// g = 0), 0 ≤ g ≤ 8, and at most all of the specular power scattered at any incidence.
+    fn scatter(&self, t: Table<'s, '_>, roughness: Roughness) -> R<Option<Abg>> {
         t.with("scatter", |n| {
-            if roughness > 0.0 {
+            if roughness.is_rough() {
                 return Err(n.err(
                     "ABg scatter applies to a smooth surface (it takes its power from the specular reflection); \
                      give either `roughness` or `scatter`",
@@ -1258,20 +1297,16 @@ impl<'s> Loader<'s> {
                 if !(a > 0.0 && a.is_finite()) {
                     return Err(n.err(format!("A must be positive and finite, found {a}")));
                 }
-                if !(b > 0.0 && b.is_finite()) {
-                    return Err(n.err(format!("B must be positive and finite (B = 0 puts an infinite peak at the specular direction), found {b}")));
-                }
                 if !(0.0..=8.0).contains(&g) {
                     return Err(n.err(format!("g must lie in [0, 8], found {g}")));
                 }
-                let abg = Abg { a, b, g };
-                if abg.knee() < 1e-6 {
-                    return Err(n.err(format!(
-                        "the lobe's width B^(1/g) = {:e} is below 1e-6 (the precision of a direction): the surface is \
-                         specular; raise B or drop `scatter`",
-                        abg.knee()
-                    )));
+                // B = 0 is a finite, flat lobe for g = 0 and an infinite peak otherwise.
+                if !((b > 0.0 || (b == 0.0 && g == 0.0)) && b <= 1e100) {
+                    return Err(
+                        n.err(format!("B must be positive (0 allowed only with g = 0) and at most 1e100, found {b}"))
+                    );
                 }
+                let abg = Abg { a, b, g };
                 let tis = abg.normal_incidence_tis();
                 if tis > 1.0 {
                     return Err(n.err(format!(

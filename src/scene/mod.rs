@@ -34,6 +34,41 @@ pub struct Simulation {
 /// direction's f32 resolution, and microfacet sampling loses its precision.
 pub const SMOOTH_ROUGHNESS: f64 = 1e-4;
 
+/// GGX roughness: α along the surface tangent (`u`, see `Geometry::tangent`) and across it in
+/// the surface plane (`v`). Equal: isotropic (the tangent is never needed); both 0: smooth. The
+/// loader gives either both zero or both ≥ `SMOOTH_ROUGHNESS`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Roughness {
+    pub u: f64,
+    pub v: f64,
+}
+
+impl Roughness {
+    pub const SMOOTH: Roughness = Roughness { u: 0.0, v: 0.0 };
+
+    pub fn isotropic(alpha: f64) -> Self {
+        Roughness { u: alpha, v: alpha }
+    }
+
+    /// A microfacet surface, not a smooth (delta) one.
+    #[inline]
+    pub fn is_rough(&self) -> bool {
+        self.u > 0.0 || self.v > 0.0
+    }
+
+    /// Whether the lobe turns with the surface tangent.
+    #[inline]
+    pub fn is_anisotropic(&self) -> bool {
+        self.u != self.v
+    }
+}
+
+impl From<f64> for Roughness {
+    fn from(alpha: f64) -> Self {
+        Roughness::isotropic(alpha)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub enum Material {
     Absorber,
@@ -48,28 +83,28 @@ pub enum Material {
         scatter: Option<Abg>,
     },
     /// A metal of complex index `eta` + i`k` (against an outside of index 1), times a factor;
-    /// GGX `roughness` α (0: smooth); a smooth one may have ABg `scatter`.
+    /// GGX `roughness` (0: smooth); a smooth one may have ABg `scatter`.
     Conductor {
         eta: Spectrum,
         k: Spectrum,
         specular_reflectance: Spectrum,
-        roughness: f64,
+        roughness: Roughness,
         scatter: Option<Abg>,
     },
     /// A diffuse base of albedo `diffuse_reflectance` under a dielectric coat of index `ior`
-    /// (against 1 outside), smooth or rough (GGX `roughness` α > 0).
+    /// (against 1 outside), smooth or rough (GGX `roughness`).
     Plastic {
         diffuse_reflectance: Spectrum,
         ior: f64,
-        roughness: f64,
+        roughness: Roughness,
     },
     /// Boundary between `outside_ior` (front, the normals' side) and `ior` (inside), smooth or
-    /// rough (GGX `roughness` α > 0); a smooth one may have ABg `scatter`.
+    /// rough (GGX `roughness`); a smooth one may have ABg `scatter`.
     Dielectric {
         ior: Spectrum,
         outside_ior: Spectrum,
         absorption_per_m: Option<Spectrum>,
-        roughness: f64,
+        roughness: Roughness,
         scatter: Option<Abg>,
     },
 }
@@ -100,16 +135,23 @@ impl Abg {
         }
     }
 
+    /// An s below which the shape is flat: s^{g/2} ≤ 10⁻⁴·B (the cusp of a small g included),
+    /// and at most (10⁻³·knee)² and 10⁻⁸; at least 10⁻³⁰⁰.
+    pub fn flat_below(&self) -> f64 {
+        let cusp = if self.g > 0.0 { (1e-4 * self.b).powf(2.0 / self.g) } else { 1.0 };
+        cusp.min((self.knee() * 1e-3).powi(2)).min(1e-8).max(1e-300)
+    }
+
     /// Total integrated scatter at normal incidence, ∫_{|β|<1} BSDF d²β = πA ∫₀¹ ds/(B + s^{g/2}),
     /// by Gauss–Legendre panels uniform in ln s. It is the largest at any incidence: the disk
     /// |β| < 1 is centred on the lobe there, and the overlap of two centred, radially decreasing
     /// functions is greatest when they are concentric.
     pub fn normal_incidence_tis(&self) -> f64 {
-        // Below s_lo the shape is flat to 1e-6 relative: ∫₀^{s_lo} ≈ s_lo·shape(0).
-        let s_lo = (self.knee() * 1e-4).powi(2).min(1e-8);
+        // Below s_lo the shape is within 1e-4 of shape(0) (s^{g/2} ≤ 1e-4·B): ∫₀^{s_lo} ≈ s_lo·shape(0).
+        let s_lo = self.flat_below();
         let (x0, panels) = (s_lo.ln(), 400);
         let h = -x0 / panels as f64;
-        let mut sum = s_lo / self.b;
+        let mut sum = s_lo * self.shape(0.0);
         for p in 0..panels {
             let mid = x0 + (p as f64 + 0.5) * h;
             for (x, w) in GAUSS_LEGENDRE_8 {
@@ -243,9 +285,9 @@ pub struct Effects {
     pub diffuse_reflection: bool,
     pub diffuse_transmission: bool,
     pub specular_reflection: bool,
-    /// A rough (microfacet) reflection: a conductor or dielectric with roughness > 0.
+    /// A rough (microfacet) reflection, or ABg scatter on a reflection.
     pub glossy_reflection: bool,
-    /// A rough refraction (a dielectric with roughness > 0).
+    /// A rough refraction, or ABg scatter on a refraction.
     pub glossy_transmission: bool,
     pub refraction: bool,
     pub dispersion: bool,
@@ -391,7 +433,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.spectral |= varies(reflectance);
             }
             Material::Plastic { diffuse_reflectance, roughness, .. } => {
-                if *roughness > 0.0 {
+                if roughness.is_rough() {
                     fx.glossy_reflection = true;
                 } else {
                     fx.specular_reflection = true;
@@ -401,7 +443,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
             }
             Material::Conductor { eta, k, specular_reflectance, roughness, scatter } => {
                 if positive(specular_reflectance) {
-                    if *roughness > 0.0 {
+                    if roughness.is_rough() {
                         fx.glossy_reflection = true;
                     } else {
                         fx.specular_reflection = true;
@@ -411,7 +453,7 @@ pub fn effects_of(materials: &[NamedMaterial], used: &[bool], range: (f64, f64),
                 fx.spectral |= varies(eta) || varies(k) || varies(specular_reflectance);
             }
             Material::Dielectric { ior, outside_ior, absorption_per_m, roughness, scatter } => {
-                if *roughness > 0.0 {
+                if roughness.is_rough() {
                     fx.glossy_reflection = true;
                     fx.glossy_transmission = true;
                 } else {

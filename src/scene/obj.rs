@@ -8,15 +8,48 @@ use glam::{DVec2, DVec3};
 
 use crate::error::InputError;
 
+/// One triangle of a mesh: its corners, their texture coordinates when the face gives them
+/// (`v/vt`), and its surface tangent (`tangent`).
+pub struct ObjTriangle {
+    pub verts: [DVec3; 3],
+    pub uv: Option<[DVec2; 3]>,
+    pub tangent: DVec3,
+}
+
+/// A triangle's surface tangent, the u axis of an anisotropic material: ∂P/∂u of the map from
+/// its texture coordinates to its corners when it has them and they enclose area, else its
+/// face's first edge (first vertex to second as listed, shared by all of a polygon's triangles,
+/// or the triangle's own where those two coincide).
+/// With P = P₀ + (u − u₀)∂P/∂u + (v − v₀)∂P/∂v on the triangle, the edges e₁ = P₁ − P₀,
+/// e₂ = P₂ − P₀ and their (Δu, Δv) give ∂P/∂u = (Δv₂ e₁ − Δv₁ e₂)/(Δu₁Δv₂ − Δu₂Δv₁).
+fn tangent(t: &[DVec3; 3], uv: Option<[DVec2; 3]>, first_edge: DVec3) -> DVec3 {
+    if let Some(q) = uv {
+        let (d1, d2) = (q[1] - q[0], q[2] - q[0]);
+        let det = d1.x * d2.y - d2.x * d1.y;
+        // Relative to the UV edges' size: rounding noise is not an area.
+        if det.abs() > 1e-9 * d1.length_squared().max(d2.length_squared()) {
+            let dpdu = ((t[1] - t[0]) * d2.y - (t[2] - t[0]) * d1.y) / det;
+            if dpdu.length_squared() > 0.0 && dpdu.is_finite() {
+                return dpdu;
+            }
+        }
+    }
+    // A polygon starting with a repeated vertex: the triangle's own first edge.
+    if first_edge.length_squared() > 0.0 {
+        first_edge
+    } else {
+        t[1] - t[0]
+    }
+}
+
 /// Reads the triangles of an OBJ file. Zero-area triangles (repeated or collinear vertices) can
 /// never be hit: each is skipped with a warning naming the file, the line and the face.
-/// Each triangle comes with its corners' texture coordinates when the face gives them (`v/vt`).
-pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 3], Option<[DVec2; 3]>)>, InputError> {
+pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriangle>, InputError> {
     let text = crate::error::read_text_lossy(path, "mesh file")?;
     let err = |line: usize, m: String| InputError::new(path, "", Some(line), m);
     let mut verts: Vec<DVec3> = Vec::new();
     let mut texcoords: Vec<DVec2> = Vec::new();
-    let mut tris: Vec<([DVec3; 3], Option<[DVec2; 3]>)> = Vec::new();
+    let mut tris: Vec<ObjTriangle> = Vec::new();
     let mut face = 0usize;
     // (line, face) of each zero-area triangle, skipped.
     let mut flat: Vec<(usize, usize)> = Vec::new();
@@ -84,6 +117,7 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 
                     return Err(err(line_no, format!("a face needs at least 3 vertices, found {}", idx.len())));
                 }
                 face += 1;
+                let first_edge = verts[idx[1]] - verts[idx[0]];
                 for j in 1..idx.len() - 1 {
                     let t = [verts[idx[0]], verts[idx[j]], verts[idx[j + 1]]];
                     let uv = match (tex[0], tex[j], tex[j + 1]) {
@@ -91,7 +125,7 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<([DVec3; 
                         _ => None,
                     };
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
-                        tris.push((t, uv));
+                        tris.push(ObjTriangle { verts: t, uv, tangent: tangent(&t, uv, first_edge) });
                     } else {
                         flat.push((line_no, face));
                     }

@@ -171,17 +171,38 @@ fn twice_area(t: &[DVec3; 3]) -> f64 {
     (t[1] - t[0]).cross(t[2] - t[0]).length()
 }
 
-/// Triangles of a shape (not a point), transformed, in scene units; with their texture
-/// coordinates when the shape is a mesh whose every face has them.
+/// A shape's triangles in scene units, after its transform.
+pub struct Triangles {
+    pub tris: Vec<[DVec3; 3]>,
+    /// Each triangle's surface tangent, the u axis of an anisotropic material (`[αu, αv]`), not
+    /// normalised and not yet projected into the triangle's plane (`Geometry` does both):
+    /// * quad: its first edge, corners[1] − corners[0], on both halves;
+    /// * disk: the first axis e₁ of its in-plane frame, the one its map's u and its first rim
+    ///   vertex lie along (`DVec3::any_orthonormal_pair` of the unit normal (x, y, z), with
+    ///   σ = sign z: e₁ = (1 − x²/(1 + |z|), −xy/(1 + |z|), −σx), so +x for every normal
+    ///   perpendicular to x);
+    /// * sphere: ∂P/∂φ at each triangle's centroid, φ the longitude about the sphere's own z
+    ///   axis (along the parallels, eastward), so a brushed sphere is brushed around z;
+    /// * box: the first of its own axes x, y, z lying in the face: y on the ±x faces, x on the
+    ///   ±y and ±z faces;
+    /// * mesh: ∂P/∂u from the texture coordinates, else the face's first edge (`obj::read_obj`).
+    ///
+    /// All before the transform, then turned and stretched by its linear part as the surface is.
+    pub tangents: Vec<DVec3>,
+    /// Texture coordinates, when the shape is a mesh whose every face has them.
+    pub uvs: Option<Vec<[DVec2; 3]>>,
+}
+
+/// The triangles of a shape (not a point), transformed, in scene units.
 pub fn triangulate(
     shape: &ShapeSpec,
     src: &Source,
     key: &str,
     line: usize,
     warnings: &mut Vec<String>,
-) -> Result<(Vec<[DVec3; 3]>, Option<Vec<[DVec2; 3]>>), InputError> {
+) -> Result<Triangles, InputError> {
     let mut uvs: Option<Vec<[DVec2; 3]>> = None;
-    let (raw, transform): (Vec<[DVec3; 3]>, &Transform) = match shape {
+    let (raw, tangents, transform): (Vec<[DVec3; 3]>, Vec<DVec3>, &Transform) = match shape {
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
             let tris = vec![[a, b, c], [a, c, d]];
@@ -204,7 +225,9 @@ pub fn triangulate(
                     "degenerate quad: its corners enclose zero area",
                 ));
             }
-            (tris.into_iter().filter(|t| twice_area(t) > 0.0).collect(), transform)
+            let tris: Vec<_> = tris.into_iter().filter(|t| twice_area(t) > 0.0).collect();
+            let tangents = vec![b - a; tris.len()];
+            (tris, tangents, transform)
         }
         ShapeSpec::Disk { center, normal, radius, segments, transform } => {
             let c = DVec3::from(*center);
@@ -217,22 +240,32 @@ pub fn triangulate(
                 })
                 .collect();
             // (u, v, n) is right-handed, so (c, ring[i], ring[i+1]) has normal +n.
-            let tris = (0..ring.len()).map(|i| [c, ring[i], ring[(i + 1) % ring.len()]]).collect();
-            (tris, transform)
+            let tris: Vec<_> = (0..ring.len()).map(|i| [c, ring[i], ring[(i + 1) % ring.len()]]).collect();
+            let tangents = vec![u; tris.len()];
+            (tris, tangents, transform)
         }
         ShapeSpec::Sphere { center, radius, subdivisions, transform } => {
             let c = DVec3::from(*center);
-            let tris = icosphere(*subdivisions).into_iter().map(|t| t.map(|p| c + *radius * p)).collect();
-            (tris, transform)
+            let unit = icosphere(*subdivisions);
+            // ∂P/∂φ ∝ ẑ × p at the centroid p.
+            let tangents = unit.iter().map(|t| DVec3::Z.cross(t[0] + t[1] + t[2])).collect();
+            let tris = unit.into_iter().map(|t| t.map(|p| c + *radius * p)).collect();
+            (tris, tangents, transform)
         }
-        ShapeSpec::Box { min, max, transform } => (box_triangles(DVec3::from(*min), DVec3::from(*max)), transform),
+        ShapeSpec::Box { min, max, transform } => {
+            // Two triangles per face, faces in the order −x, +x, −y, +y, −z, +z.
+            let tangents =
+                [DVec3::Y, DVec3::Y, DVec3::X, DVec3::X, DVec3::X, DVec3::X].iter().flat_map(|&t| [t, t]).collect();
+            (box_triangles(DVec3::from(*min), DVec3::from(*max)), tangents, transform)
+        }
         ShapeSpec::Mesh { file, key_line, transform } => {
             let faces = obj::read_obj(file, warnings).map_err(|mut e| {
                 e.message = format!("{} (mesh named by `{key}` at {}:{key_line})", e.message, src.file.display());
                 e
             })?;
-            uvs = faces.iter().map(|f| f.1).collect();
-            (faces.into_iter().map(|f| f.0).collect(), transform)
+            uvs = faces.iter().map(|f| f.uv).collect();
+            let tangents = faces.iter().map(|f| f.tangent).collect();
+            (faces.into_iter().map(|f| f.verts).collect(), tangents, transform)
         }
         ShapeSpec::Point { .. } => unreachable!("points are not triangulated"),
     };
@@ -248,8 +281,11 @@ pub fn triangulate(
             }
         })
         .collect();
+    // A tangent is a direction in the surface: the linear part maps it into the moved surface
+    // (normals need the inverse transpose; tangents do not).
+    let tangents = tangents.into_iter().map(|t| transform.linear * t).collect();
     let uvs = uvs.map(|u| u.into_iter().map(|t| if flip { [t[0], t[2], t[1]] } else { t }).collect());
-    Ok((tris, uvs))
+    Ok(Triangles { tris, tangents, uvs })
 }
 
 /// Axis-aligned box, 12 triangles, normals outward.

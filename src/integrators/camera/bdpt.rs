@@ -272,7 +272,8 @@ impl ImageKernel<'_> {
             v.medium = medium;
             v.on_dielectric = is_dielectric;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n);
+            let tangent = || geo.tangent(hit.prim as usize);
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n, tangent);
             if bsdf.is_connectible() {
                 v.bsdf = Some(bsdf);
             }

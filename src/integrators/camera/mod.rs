@@ -110,6 +110,11 @@ fn scatter(bsdf: &Bsdf, wo: Vec3A, mode: Mode, beta: &mut Lanes, s: &mut Sampler
         return None;
     }
     let sampled = bsdf.sample(wo, mode, s)?;
+    // A sample can carry nothing (ABg glass: light from beyond the critical angle); a lossless
+    // boundary has no roulette to end such a path.
+    if sampled.factor.is_zero() {
+        return None;
+    }
     *beta *= sampled.weight() * (1.0 / survival);
     Some(sampled)
 }

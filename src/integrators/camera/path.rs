@@ -84,7 +84,8 @@ impl ImageKernel<'_> {
             scatterings += 1;
 
             let (p, err) = geo.hit_point(&hit);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n);
+            let tangent = || geo.tangent(hit.prim as usize);
+            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n, tangent);
             if bsdf.is_absorber() {
                 break;
             }
