@@ -216,7 +216,7 @@ pub struct AbgSurface<'a, const N: usize> {
     pub table: &'a Table,
 }
 
-/// `wo` and `wi` in the frame turned to `wo`'s side, their β and the side's indices.
+/// `wo` and `wi` in the frame turned to `wo`'s side (their x, y are their β), and the indices.
 struct Local {
     o: Vec3A,
     i: Vec3A,
@@ -346,7 +346,7 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
         let (beta0, choice) = if reflection {
             ([-l.o.x as f64, -l.o.y as f64], if self.is_dielectric() { r } else { 1.0 })
         } else {
-            // r < 1 here, so the refracted direction exists.
+            // r < 1 here, so the refracted direction exists (in f32 it may not: then nothing leaves).
             (Self::refracted_beta(l.o, l.eta_o, l.eta_t)?, 1.0 - r)
         };
         let tis = self.table.tis(length(beta0));
