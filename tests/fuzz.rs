@@ -597,6 +597,8 @@ const TOML_KEYS: &[&str] = &[
     "scatter = { abg = [0.1, 0.01, 2] }",
     "scatter = { abg = [1e300, 1e-300, 8] }",
     "scatter = { abg = [1e-300, 1e300, 0] }",
+    "scatter = { abg = [1e-300, 1e-300, 8] }",
+    "scatter = { abg = [0.3, 0, 0] }",
     "scatter = { abg = [] }",
     "metal = \"Au\"",
     "metal = \"Fe\"",

@@ -105,8 +105,9 @@ impl Table {
         let s = s.clamp(0.0, 4.0);
         let k = Self::cell(&self.s, self.ln_ratio, s);
         let x = s - self.s[k];
-        let slope = (self.shape[k + 1] - self.shape[k]) / (self.s[k + 1] - self.s[k]);
-        self.cumulative[k] + x * (self.shape[k] + 0.5 * slope * x)
+        // In the cell's own fraction t, so that a steep cell (huge shape, tiny width) cannot overflow.
+        let t = (x / (self.s[k + 1] - self.s[k])).clamp(0.0, 1.0);
+        self.cumulative[k] + x * (self.shape[k] + 0.5 * (self.shape[k + 1] - self.shape[k]) * t)
     }
 
     /// The s with W(s) = w (inverse CDF): a linear density within a cell gives a quadratic.
@@ -114,12 +115,12 @@ impl Table {
         let k = self.cumulative.partition_point(|&c| c <= w).clamp(1, self.s.len() - 1) - 1;
         let (s0, s1) = (self.s[k], self.s[k + 1]);
         let (f0, f1) = (self.shape[k], self.shape[k + 1]);
-        let slope = (f1 - f0) / (s1 - s0);
-        let rest = (w - self.cumulative[k]).max(0.0);
-        // x·f0 + slope·x²/2 = rest, in the form without cancellation.
-        let disc = (f0 * f0 + 2.0 * slope * rest).max(0.0);
-        let x = 2.0 * rest / (f0 + disc.sqrt());
-        (s0 + x).min(s1)
+        // With x = t·(s1 − s0): t + d·t²/2 = c, d = (f1 − f0)/f0 ∈ [−1, 0] and c the rest of w
+        // over the cell's f0·(s1 − s0), solved without cancellation and scaled so nothing overflows.
+        let c = ((w - self.cumulative[k]).max(0.0) / (f0 * (s1 - s0))).min(1.0);
+        let d = (f1 - f0) / f0;
+        let t = 2.0 * c / (1.0 + (1.0 + 2.0 * d * c).max(0.0).sqrt());
+        (s0 + t.clamp(0.0, 1.0) * (s1 - s0)).min(s1)
     }
 
     /// M(b) = ∫_{|β|<1} shape(|β − β₀|²) d²β for |β₀| = b: in polar coordinates about β₀ the disk
@@ -132,7 +133,7 @@ impl Table {
         };
         let tolerance = 1e-9 * self.cumulative[self.cumulative.len() - 1];
         let (fa, fm, fb) = (f(0.0), f(0.5 * PI), f(PI));
-        adaptive_simpson(&f, 0.0, PI, fa, fm, fb, simpson(0.0, PI, fa, fm, fb), tolerance, 40)
+        adaptive_simpson(&f, 0.0, PI, fa, fm, fb, simpson(0.0, PI, fa, fm, fb), tolerance, 18)
     }
 
     /// Total integrated scatter about a specular direction of projection length `b`: A·M(b),
@@ -190,7 +191,8 @@ fn adaptive_simpson(
     let (lm, rm) = (f(0.5 * (a + m)), f(0.5 * (m + b)));
     let (left, right) = (simpson(a, m, fa, lm, fm), simpson(m, b, fm, rm, fb));
     let delta = left + right - whole;
-    if depth == 0 || delta.abs() <= 15.0 * tolerance {
+    // A non-finite or unresolvable piece stops refining (no input can make this run for ever).
+    if depth == 0 || !(delta.abs() > 15.0 * tolerance) {
         left + right + delta / 15.0
     } else {
         adaptive_simpson(f, a, m, fa, lm, fm, left, 0.5 * tolerance, depth - 1)
