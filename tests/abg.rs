@@ -62,18 +62,6 @@ fn at(theta_deg: f64, phi_deg: f64) -> Vec3A {
     Vec3A::new((st * cp) as f32, (st * sp) as f32, ct as f32)
 }
 
-/// 8-point Gauss–Legendre on [−1, 1].
-const GL8: [(f64, f64); 8] = [
-    (-0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-    (-0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (-0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (-0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.183_434_642_495_649_8, 0.362_683_783_378_362),
-    (0.525_532_409_916_329, 0.313_706_645_877_887_3),
-    (0.796_666_477_413_626_7, 0.222_381_034_453_374_47),
-    (0.960_289_856_497_536_3, 0.101_228_536_290_376_26),
-];
-
 /// ∫₀^ρ h(r) r dr by Gauss–Legendre panels uniform in ln r from `r_lo` (below which h is taken
 /// as h(0)).
 fn radial(h: impl Fn(f64) -> f64, rho: f64, r_lo: f64, panels: usize) -> f64 {
@@ -85,7 +73,7 @@ fn radial(h: impl Fn(f64) -> f64, rho: f64, r_lo: f64, panels: usize) -> f64 {
     let mut sum = 0.5 * r_lo * r_lo * h(0.0);
     for p in 0..panels {
         let mid = x0 + (p as f64 + 0.5) * step;
-        for (x, w) in GL8 {
+        for (x, w) in photon::scene::GAUSS_LEGENDRE_8 {
             let r = (mid + 0.5 * step * x).exp();
             sum += 0.5 * step * w * r * r * h(r);
         }
@@ -284,17 +272,8 @@ fn chi2_beta(
     }
     let total: f64 = expected.iter().sum();
     expected[cells - 1] = (1.0 - total).max(0.0);
-    let (mut stat, mut used, mut pooled_o, mut pooled_e) = (0.0, 0usize, 0.0, 0.0);
-    for (o, e) in observed.iter().zip(&expected) {
-        let e = e * SAMPLES as f64;
-        if e < 5.0 {
-            pooled_o += o;
-            pooled_e += e;
-        } else {
-            stat += (o - e) * (o - e) / e;
-            used += 1;
-        }
-    }
+    let common::Pearson { mut stat, cells: mut used, pooled_observed: pooled_o, pooled_expected: pooled_e } =
+        common::pearson(&observed, &expected, SAMPLES);
     // The pooled cell counts even when it expects little, so that samples where the pdf expects
     // none fail the test.
     if pooled_e > 0.0 {

@@ -86,17 +86,8 @@ fn chi2_lossy(
     let total: f64 = expected.iter().sum();
     expected.push(if lossy { (1.0 - total).max(0.0) } else { 0.0 });
     // Pool the bins expecting fewer than 5 into one.
-    let (mut stat, mut cells, mut pooled_o, mut pooled_e) = (0.0, 0usize, 0.0, 0.0);
-    for (o, e) in observed.iter().zip(&expected) {
-        let e = e * SAMPLES as f64;
-        if e < 5.0 {
-            pooled_o += o;
-            pooled_e += e;
-        } else {
-            stat += (o - e) * (o - e) / e;
-            cells += 1;
-        }
-    }
+    let common::Pearson { mut stat, mut cells, pooled_observed: pooled_o, pooled_expected: pooled_e } =
+        common::pearson(&observed, &expected, SAMPLES);
     if pooled_e >= 5.0 {
         stat += (pooled_o - pooled_e) * (pooled_o - pooled_e) / pooled_e;
         cells += 1;

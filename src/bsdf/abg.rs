@@ -389,20 +389,21 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
     #[inline]
     fn lobe_factor(&self, lobe: Lobe, l: &Local, mode: Mode) -> Lanes<N> {
         let bo = Local::beta(l.o);
-        let r_o = self.reflectance(l.o.z as f64, l.eta_o, l.eta_t);
+        // Evaluated only by the lobes that take them (a metal's is four complex Fresnel terms).
+        let r_o = || self.reflectance(l.o.z as f64, l.eta_o, l.eta_t);
+        let t_o = || 1.0 - self.split(l);
         // The delta refraction's radiance weight (η_o/η_t)² (see `f`).
         let scale = match mode {
             Mode::Radiance => (l.eta_o / l.eta_t).powi(2),
             Mode::Importance => 1.0,
         };
         let refracted = || Self::refracted_beta(l.o, l.eta_o, l.eta_t);
-        let t_o = 1.0 - self.split(l);
         match lobe {
-            Lobe::SpecularReflection => r_o * (1.0 - self.table.tis(length(bo))),
+            Lobe::SpecularReflection => r_o() * (1.0 - self.table.tis(length(bo))),
             Lobe::GlossyReflection => {
                 let tis = self.table.tis(length(bo));
                 match mode {
-                    Mode::Importance => r_o * tis,
+                    Mode::Importance => r_o() * tis,
                     Mode::Radiance => self.reflectance(l.i.z as f64, l.eta_o, l.eta_t) * tis,
                 }
             }
@@ -412,13 +413,13 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
                     Mode::Importance => refracted().map_or(1.0, length),
                     Mode::Radiance => length(bo),
                 };
-                Lanes::splat(t_o * (1.0 - self.table.tis(leaving)) * scale)
+                Lanes::splat(t_o() * (1.0 - self.table.tis(leaving)) * scale)
             }
             Lobe::GlossyTransmission => {
                 let Some(beta0) = refracted() else { return Lanes::ZERO };
                 let tis = self.table.tis(length(beta0));
                 match mode {
-                    Mode::Importance => Lanes::splat(t_o * tis),
+                    Mode::Importance => Lanes::splat(t_o() * tis),
                     Mode::Radiance => {
                         let Some(beta_light) = Self::refracted_beta(l.i, l.eta_t, l.eta_o) else { return Lanes::ZERO };
                         let t_light = 1.0 - fresnel_dielectric(-l.i.z as f64, l.eta_t, l.eta_o).0;

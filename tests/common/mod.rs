@@ -171,3 +171,28 @@ pub fn farfield_z(
     }
     (chi2, k, worst)
 }
+
+/// Pearson's statistic over the cells expecting at least 5 of `n` samples (`expected` as
+/// probabilities), with how many cells that is, and the observed and expected counts of the rest
+/// pooled, for the caller to judge as its test requires.
+pub struct Pearson {
+    pub stat: f64,
+    pub cells: usize,
+    pub pooled_observed: f64,
+    pub pooled_expected: f64,
+}
+
+pub fn pearson(observed: &[f64], expected: &[f64], n: usize) -> Pearson {
+    let mut out = Pearson { stat: 0.0, cells: 0, pooled_observed: 0.0, pooled_expected: 0.0 };
+    for (o, e) in observed.iter().zip(expected) {
+        let e = e * n as f64;
+        if e < 5.0 {
+            out.pooled_observed += o;
+            out.pooled_expected += e;
+        } else {
+            out.stat += (o - e) * (o - e) / e;
+            out.cells += 1;
+        }
+    }
+    out
+}
