@@ -193,9 +193,72 @@ fn abg_conserves_energy_at_every_angle() {
     }
 }
 
+/// ∫ h(β) d²β over the disk |β − c| < r_max, in polar coordinates about c (where a lobe
+/// peaks): `radial`'s log panels in r, midpoint rule in φ.
+fn about(h: impl Fn([f64; 2]) -> f64 + Copy, c: [f64; 2], r_max: f64, knee: f64) -> f64 {
+    let n_phi = 720;
+    let mut sum = 0.0;
+    for j in 0..n_phi {
+        let (sp, cp) = (2.0 * PI * (j as f64 + 0.5) / n_phi as f64).sin_cos();
+        sum += radial(|r| h([c[0] + r * cp, c[1] + r * sp]), r_max, knee * 1e-5, 400);
+    }
+    sum * 2.0 * PI / n_phi as f64
+}
+
+#[test]
+fn camera_path_samples_average_to_the_whole_radiance_f_on_both_sides_of_glass() {
+    // A camera path's sample weight f|cosθ_i|/pdf (0 for a lost sample) averages to what the
+    // radiance f returns over every wi: the delta shares plus ∫ f d²β over both sides, here by
+    // quadrature of the model's f about each side's peak (the other side's, −(η_o/η_t)β_o, lies
+    // outside the disk from inside beyond the critical angle, 41.8°: light from outside still
+    // scatters into wo there). This holds the sampler's support, not only its pdf: a sampler
+    // that never refracted under total reflection would miss that light and fail by far.
+    // Bound: |z| < 4 on 400 000 samples, z from the weights' own spread (they are bounded).
+    for p in [NARROW, BROAD] {
+        let m = glass(p);
+        for (deg, inside) in [(0.0, false), (70.0, false), (30.0, true), (50.0, true), (75.0, true)] {
+            let wo = at(deg, 75.0);
+            let (n, k) = if inside { (-Vec3A::Z, 1.5) } else { (Vec3A::Z, 1.0 / 1.5) };
+            let b = grey(&m, n);
+            let f_on = |side: f32| {
+                move |beta: [f64; 2]| {
+                    let z2 = 1.0 - beta[0] * beta[0] - beta[1] * beta[1];
+                    if !(z2 > 0.0) {
+                        return 0.0;
+                    }
+                    let wi = Vec3A::new(beta[0] as f32, beta[1] as f32, side * z2.sqrt() as f32);
+                    b.f(wo, wi, Mode::Radiance).value().0[0]
+                }
+            };
+            let delta = |lobe| b.event_terms(lobe, wo, wo, Mode::Radiance).factor.0[0];
+            let reflected = about(f_on(1.0), [-wo.x as f64, -wo.y as f64], 2.0, p.knee());
+            let refracted = about(f_on(-1.0), [-k * wo.x as f64, -k * wo.y as f64], 3.0, p.knee() * k);
+            let want = delta(Lobe::SpecularReflection) + delta(Lobe::SpecularTransmission) + reflected + refracted;
+
+            let mut s = Sampler::for_batch(400 + deg as u64, inside as u64);
+            let samples = 400_000;
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..samples {
+                let w = b.sample(wo, Mode::Radiance, &mut s).map_or(0.0, |x| x.weight().0[0]);
+                assert!(w.is_finite() && w >= 0.0, "weight {w}");
+                sum += w;
+                sum2 += w * w;
+            }
+            let mean = sum / samples as f64;
+            let se = ((sum2 / samples as f64 - mean * mean) / samples as f64).sqrt();
+            let z = (mean - want) / se;
+            println!("{p:?}, θ = {deg}°, inside {inside}: mean weight {mean:.5} ± {se:.5}, quadrature {want:.5} (refracted scatter {refracted:.5}), z = {z:.2}");
+            assert!(
+                z.abs() < 4.0,
+                "{p:?}, θ = {deg}°, inside {inside}: samples average {mean} ± {se}, f integrates to {want}"
+            );
+        }
+    }
+}
+
 /// Pearson χ² of `b.sample` from `wo` against `b.pdf`, in direction-cosine bins about each side's
 /// specular β₀ (`centres`: reflection side, then transmission side if any): a core disk of radius
-/// knee/8, then 24 log-spaced annuli to 2, each cut into 16 sectors; plus one cell for the
+/// knee/8, then 24 log-spaced annuli to 2 (the last out to the disk's far edge), each cut into 16 sectors; plus one cell for the
 /// specular (delta) share and lost samples, expected 1 − ∫pdf. A bin's expected count is N ∫pdf
 /// d²β over it, pdf per d²β being pdf/|cosθ_i|, by a 12 × 12 midpoint rule in (r, φ).
 /// Returns (χ², degrees of freedom, upper-tail probability, ∫pdf).
@@ -240,30 +303,37 @@ fn chi2_beta(
     let mut expected = vec![0.0f64; cells];
     for (k, c) in centres.iter().enumerate() {
         for ring in 0..=RINGS {
-            let (r0, r1) = (edge(ring), if ring == RINGS { 2.0 } else { edge(ring + 1) });
+            // The last ring reaches every β of the disk (|c| < 2 from a centre outside it).
+            let (r0, r1) = (edge(ring), if ring == RINGS { 3.0 } else { edge(ring + 1) });
             for sector in 0..SECTORS {
                 let mut integral = 0.0;
                 for q in 0..SUB {
                     let phi = 2.0 * PI * (sector as f64 + (q as f64 + 0.5) / SUB as f64) / SECTORS as f64;
                     let (sin, cos) = phi.sin_cos();
-                    // The ring cut at the disk's edge |c + r·e| = 1 along this φ: the pdf is 0
-                    // beyond it, and a midpoint rule across that step would be off.
+                    // The ring cut to the disk |c + r·e| < 1 along this φ, r in (near, far) (a
+                    // centre outside the disk, a camera path's light beyond the critical
+                    // angle, has near > 0): the pdf is 0 beyond, and a midpoint rule across
+                    // that step would be off.
                     let along = c[0] * cos + c[1] * sin;
-                    let edge_r = -along + (along * along + 1.0 - c[0] * c[0] - c[1] * c[1]).max(0.0).sqrt();
-                    let top = r1.min(edge_r);
-                    if !(top > r0) {
+                    let disc = along * along + 1.0 - c[0] * c[0] - c[1] * c[1];
+                    if !(disc > 0.0) {
                         continue;
                     }
-                    let dr = (top - r0) / SUB as f64;
+                    let (near, far) = (-along - disc.sqrt(), -along + disc.sqrt());
+                    let (bottom, top) = (r0.max(near), r1.min(far));
+                    if !(top > bottom) {
+                        continue;
+                    }
+                    let dr = (top - bottom) / SUB as f64;
                     for a in 0..SUB {
-                        let r = r0 + (a as f64 + 0.5) * dr;
+                        let r = bottom + (a as f64 + 0.5) * dr;
                         let beta = [c[0] + r * cos, c[1] + r * sin];
                         let z2 = 1.0 - beta[0] * beta[0] - beta[1] * beta[1];
                         if !(z2 > 0.0) {
                             continue;
                         }
                         let wi = Vec3A::new(beta[0] as f32, beta[1] as f32, side_sign(k) * z2.sqrt() as f32);
-                        integral += judge.pdf(wo, wi) / (wi.z as f64).abs() * r * dr;
+                        integral += judge.pdf(wo, wi, mode) / (wi.z as f64).abs() * r * dr;
                     }
                 }
                 expected[k * per_side + ring * SECTORS + sector] = integral * 2.0 * PI / (SECTORS * SUB) as f64;
@@ -329,18 +399,19 @@ fn abg_samples_match_their_pdf_on_mirrors_metals_and_both_sides_of_glass() {
         );
     }
     // Glass: from outside, and from inside up to and beyond the critical angle (41.8°), where
-    // there is no transmitted side.
+    // a particle has no transmitted side but a camera path does: light from outside scatters
+    // into wo there, and its lobe's peak, β = −1.5·β_o, lies outside the disk.
     for p in [NARROW, BROAD] {
         let m = glass(p);
-        for (deg, inside) in [(0.0, false), (85.0, false), (40.0, true), (60.0, true)] {
+        for (deg, inside) in [(0.0, false), (85.0, false), (40.0, true), (60.0, true), (80.0, true)] {
             let wo = at(deg, 75.0);
             let (n, k) = if inside { (-Vec3A::Z, 1.5) } else { (Vec3A::Z, 1.0 / 1.5) };
             let beta_t = [-k * wo.x as f64, -k * wo.y as f64];
-            let mut centres = vec![[-wo.x as f64, -wo.y as f64]];
-            if beta_t[0].hypot(beta_t[1]) < 1.0 {
-                centres.push(beta_t);
-            }
             for mode in [Mode::Importance, Mode::Radiance] {
+                let mut centres = vec![[-wo.x as f64, -wo.y as f64]];
+                if beta_t[0].hypot(beta_t[1]) < 1.0 || mode == Mode::Radiance {
+                    centres.push(beta_t);
+                }
                 seed += 1;
                 let what = format!("glass {p:?}, θ = {deg}°, inside {inside}, {mode:?}");
                 assert_samples_match(&what, &grey(&m, n), wo, mode, &centres, p.knee(), seed);

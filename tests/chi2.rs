@@ -337,7 +337,7 @@ fn rough_conductor_reflection_matches_its_pdf_from_both_sides() {
                 &format!("rough conductor α = {alpha}, θ_o = {deg}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
-                |wi| bsdf.pdf(wo, wi),
+                |wi| bsdf.pdf(wo, wi, Mode::Importance),
             );
         }
     }
@@ -360,7 +360,8 @@ fn the_lossy_harness_rejects_a_neighbouring_roughness() {
         Bsdf::<1>::new::<false>(&judged, prepared(&judged), &[f64::NAN], n, || Vec3A::ZERO),
     );
     let wo = Vec3A::new(0.5, 0.0, 0.866).normalize();
-    let (_, _, p, _) = chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
+    let (_, _, p, _) =
+        chi2_lossy(70, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi, Mode::Importance), true);
     assert!(p < 1e-12, "p = {p}");
 }
 
@@ -394,7 +395,7 @@ fn rough_dielectric_reflection_and_transmission_match_their_pdf_from_both_sides(
                     &format!("rough dielectric α = {alpha}, θ_o = {deg}°, side {side}, {mode:?}"),
                     seed,
                     |s| bsdf.sample(wo, mode, s).map(|x| x.wi),
-                    |wi| bsdf.pdf(wo, wi),
+                    |wi| bsdf.pdf(wo, wi, mode),
                 );
             }
         }
@@ -417,7 +418,7 @@ fn plastic_base_matches_its_pdf_with_the_coat_reflection_as_the_lost_share() {
                 &format!("plastic ρ = {rho}, η = {eta}, θ_o = {deg}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).filter(|x| !x.lobe.is_delta()).map(|x| x.wi),
-                |wi| bsdf.pdf(wo, wi),
+                |wi| bsdf.pdf(wo, wi, Mode::Importance),
             );
         }
     }
@@ -438,7 +439,7 @@ fn rough_plastic_matches_its_mixture_pdf() {
                 &format!("rough plastic ρ = {rho}, α = {alpha}, θ_o = {deg}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
-                |wi| bsdf.pdf(wo, wi),
+                |wi| bsdf.pdf(wo, wi, Mode::Importance),
             );
         }
     }
@@ -513,7 +514,7 @@ fn anisotropic_rough_conductor_matches_its_pdf_at_every_azimuth_from_both_sides(
                 &format!("rough conductor α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
-                |wi| bsdf.pdf(wo, wi),
+                |wi| bsdf.pdf(wo, wi, Mode::Importance),
             );
         }
     }
@@ -529,7 +530,12 @@ fn the_lossy_harness_rejects_a_lobe_turned_about_the_normal() {
     let a = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], frame.n, || frame.t);
     let b = Bsdf::<1>::new::<false>(&metal, prepared(&metal), &[f64::NAN], frame.n, || turned);
     let wo = toward(&frame, 40.0, 20.0, 1.0);
-    let (_, _, p, _) = chi2_lossy(590, |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi), |wi| b.pdf(wo, wi), true);
+    let (_, _, p, _) = chi2_lossy(
+        590,
+        |s| a.sample(wo, Mode::Importance, s).map(|x| x.wi),
+        |wi| b.pdf(wo, wi, Mode::Importance),
+        true,
+    );
     assert!(p < 1e-12, "p = {p}");
 }
 
@@ -558,7 +564,7 @@ fn anisotropic_rough_dielectric_matches_its_pdf_at_every_azimuth_from_both_sides
                     &format!("rough dielectric α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}, {mode:?}"),
                     seed,
                     |s| bsdf.sample(wo, mode, s).map(|x| x.wi),
-                    |wi| bsdf.pdf(wo, wi),
+                    |wi| bsdf.pdf(wo, wi, mode),
                 );
             }
         }
@@ -584,7 +590,7 @@ fn anisotropic_rough_plastic_matches_its_mixture_pdf_at_every_azimuth() {
                 &format!("rough plastic α = [{au}, {av}], θ_o = {deg}°, φ_o = {phi}°, side {side}"),
                 seed,
                 |s| bsdf.sample(wo, Mode::Importance, s).map(|x| x.wi),
-                |wi| bsdf.pdf(wo, wi),
+                |wi| bsdf.pdf(wo, wi, Mode::Importance),
             );
         }
     }

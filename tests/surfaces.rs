@@ -507,7 +507,7 @@ fn swapping_alpha_u_and_alpha_v_is_turning_the_tangent_by_a_right_angle() {
                     let (x, y) = (a.f(wo, wi, mode).value().0[0], b.f(wo, wi, mode).value().0[0]);
                     assert!((x - y).abs() <= tol * x.max(y) + 1e-12, "{name} [{au}, {av}] f: {x} vs {y}");
                 }
-                let (x, y) = (a.pdf(wo, wi), b.pdf(wo, wi));
+                let (x, y) = (a.pdf(wo, wi, Mode::Importance), b.pdf(wo, wi, Mode::Importance));
                 assert!((x - y).abs() <= tol * x.max(y) + 1e-12, "{name} [{au}, {av}] pdf: {x} vs {y}");
             }
             // A turn by any other angle does change the lobe.

@@ -34,6 +34,10 @@ const TIS_CELLS: usize = 512;
 /// Draws of the offset before a sample is given up (each lands in the disk with probability ≥ 1/4,
 /// so giving up happens with probability below 1e-32).
 const MAX_DRAWS: usize = 256;
+/// The least share of a camera path's samples at a dielectric that go to the refracted side:
+/// from inside beyond the critical angle wo's own Fresnel gives that side nothing, yet light the
+/// glass scatters in from outside still reaches wo.
+const DEFENSIVE_REFRACTION: f64 = 0.1;
 
 /// The ABg lobe of one material, tabulated (see the module's notes).
 #[derive(Clone, Debug, PartialEq)]
@@ -110,6 +114,12 @@ impl Table {
         self.cumulative[k] + x * (self.shape[k] + 0.5 * (self.shape[k + 1] - self.shape[k]) * t)
     }
 
+    /// W(4): the lobe's whole power over |β − β₀| ≤ 2 is πA·W(4).
+    #[inline]
+    fn total(&self) -> f64 {
+        self.cumulative[self.cumulative.len() - 1]
+    }
+
     /// The s with W(s) = w (inverse CDF): a linear density within a cell gives a quadratic.
     fn inverse_cumulative(&self, w: f64) -> f64 {
         let k = self.cumulative.partition_point(|&c| c <= w).clamp(1, self.s.len() - 1) - 1;
@@ -131,7 +141,7 @@ impl Table {
             let rho = -b * cos + (1.0 - b * b * sin * sin).max(0.0).sqrt();
             self.cumulative(rho * rho)
         };
-        let tolerance = 1e-9 * self.cumulative[self.cumulative.len() - 1];
+        let tolerance = 1e-9 * self.total();
         let (fa, fm, fb) = (f(0.0), f(0.5 * PI), f(PI));
         adaptive_simpson(&f, 0.0, PI, fa, fm, fb, simpson(0.0, PI, fa, fm, fb), tolerance, 18)
     }
@@ -315,41 +325,61 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
         }
     }
 
-    /// Solid-angle density of `sample`'s scattered directions: the lobe choice (R·TIS) times
-    /// A·shape/M per d²β, times |cosθ_i| — the M's cancel.
+    /// Solid-angle density of `sample`'s scattered directions in `mode`: the lobe choice times
+    /// the offset's density per d²β times |cosθ_i|. About a specular direction that is
+    /// R·TIS · A·shape/(A·M): the M's cancel. A camera path's refraction is drawn in the light's
+    /// variables (`sample_refraction_of_light`): there it is q · shape(|Δ|²)/(πW(4)) · (η_t/η_o)².
     #[inline]
-    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A) -> f64 {
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A, mode: Mode) -> f64 {
         let (_, l) = self.local(wo, wi, n);
         if !(l.o.z > 0.0) || l.i.z == 0.0 {
             return 0.0;
         }
         let (bo, bi) = (Local::beta(l.o), Local::beta(l.i));
-        let r = self.split(&l);
+        let p_reflect = self.reflection_share(&l, mode);
         let cos = (l.i.z as f64).abs();
         if l.i.z > 0.0 {
-            return r * self.table.bsdf(bi, [-bo[0], -bo[1]]) * cos;
+            return p_reflect * self.table.bsdf(bi, [-bo[0], -bo[1]]) * cos;
         }
-        match (self.is_dielectric(), Self::refracted_beta(l.o, l.eta_o, l.eta_t)) {
-            (true, Some(beta0)) => (1.0 - r) * self.table.bsdf(bi, beta0) * cos,
-            _ => 0.0,
+        if !self.is_dielectric() {
+            return 0.0;
+        }
+        match mode {
+            Mode::Importance => match Self::refracted_beta(l.o, l.eta_o, l.eta_t) {
+                Some(beta0) => (1.0 - p_reflect) * self.table.bsdf(bi, beta0) * cos,
+                None => 0.0,
+            },
+            Mode::Radiance => {
+                // Δ = β_o − β₀(wi), β₀(wi) = −(η_t/η_o)·β_i the light's refracted direction.
+                let k = l.eta_t / l.eta_o;
+                let s = (bo[0] + k * bi[0]).powi(2) + (bo[1] + k * bi[1]).powi(2);
+                if !(s <= 4.0) {
+                    return 0.0;
+                }
+                let q = self.glossy_share_of_light(&l);
+                (1.0 - p_reflect) * q * self.table.shape(s) / (PI * self.table.total()) * k * k * cos
+            }
         }
     }
 
-    /// Reflect or refract (a dielectric: with probability R), then scatter with probability TIS
-    /// about that specular direction or keep it.
+    /// Reflect or refract (a dielectric: with probability `reflection_share`), then scatter with
+    /// probability TIS about that specular direction or keep it.
     #[inline]
     pub fn sample(&self, wo: Vec3A, n: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
         let (frame, mut l) = self.local(wo, wo, n);
         if !(l.o.z > 0.0) {
             return None;
         }
-        let r = self.split(&l);
-        let reflection = !self.is_dielectric() || s.uniform() < r;
+        let p_reflect = self.reflection_share(&l, mode);
+        let reflection = !self.is_dielectric() || s.uniform() < p_reflect;
+        if !reflection && mode == Mode::Radiance {
+            return self.sample_refraction_of_light(wo, n, frame, l, 1.0 - p_reflect, s);
+        }
         let (beta0, choice) = if reflection {
-            ([-l.o.x as f64, -l.o.y as f64], if self.is_dielectric() { r } else { 1.0 })
+            ([-l.o.x as f64, -l.o.y as f64], p_reflect)
         } else {
-            // r < 1 here, so the refracted direction exists (in f32 it may not: then nothing leaves).
-            (Self::refracted_beta(l.o, l.eta_o, l.eta_t)?, 1.0 - r)
+            // R < 1 here, so the refracted direction exists (in f32 it may not: then nothing leaves).
+            (Self::refracted_beta(l.o, l.eta_o, l.eta_t)?, 1.0 - p_reflect)
         };
         let tis = self.table.tis(length(beta0));
         let (lobe, wi, pdf) = if s.uniform() < tis {
@@ -362,16 +392,63 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
         } else if reflection {
             (Lobe::SpecularReflection, reflect(-wo, n), 0.0)
         } else {
-            let d = -wo;
-            let n_in = if d.dot(n) < 0.0 { n } else { -n };
-            let cos_t = (1.0 - length(beta0).powi(2)).max(0.0).sqrt();
-            (Lobe::SpecularTransmission, refract(d, n_in, l.eta_o, l.eta_t, l.o.z as f64, cos_t), 0.0)
+            (Lobe::SpecularTransmission, Self::specular_refraction(wo, n, &l, beta0), 0.0)
         };
         let lobe_pdf = choice * if lobe.is_delta() { 1.0 - tis } else { tis };
-        // A radiance sample can carry nothing (light from a wi inside glass beyond the critical
-        // angle cannot reach wo) and is still returned, so `pdf` stays its density.
         let factor = self.lobe_factor(lobe, &l, mode);
         (lobe_pdf > 0.0).then_some(Sample { wi, lobe, factor, lobe_pdf, pdf })
+    }
+
+    /// A camera path's refraction (chosen with probability `choice`), drawn in the light's
+    /// variables: the light from wi scatters about its own refracted direction β₀(wi), so wi is
+    /// found from an offset Δ drawn from the whole lobe (|Δ| ≤ 2, density shape(|Δ|²)/(πW(4))
+    /// per d²Δ) as β_i = −(η_o/η_t)(β_o − Δ), with d²Δ = (η_t/η_o)² d²β_i. This reaches every wi
+    /// the light can come from, also when wo, inside beyond the critical angle, has no
+    /// refracted direction of its own; a Δ that puts β_i outside the unit disk is lost. With
+    /// probability 1 − q (q = TIS about wo) the light comes along wo's own refraction instead.
+    #[inline]
+    fn sample_refraction_of_light(
+        &self,
+        wo: Vec3A,
+        n: Vec3A,
+        frame: Frame,
+        mut l: Local,
+        choice: f64,
+        s: &mut Sampler,
+    ) -> Option<Sample<N>> {
+        let q = self.glossy_share_of_light(&l);
+        let (lobe, wi, lobe_pdf, pdf) = if s.uniform() < q {
+            let bo = Local::beta(l.o);
+            let r2 = self.table.inverse_cumulative(s.uniform() * self.table.total());
+            let (sin, cos) = (2.0 * PI * s.uniform()).sin_cos();
+            let (r, k) = (r2.sqrt(), l.eta_o / l.eta_t);
+            let beta = [-k * (bo[0] - r * cos), -k * (bo[1] - r * sin)];
+            let z2 = 1.0 - beta[0] * beta[0] - beta[1] * beta[1];
+            if !(z2 > 0.0) {
+                return None;
+            }
+            let z = z2.sqrt();
+            l.i = Vec3A::new(beta[0] as f32, beta[1] as f32, -z as f32);
+            let pdf = choice * q * self.table.shape(r2) / (PI * self.table.total()) / (k * k) * z;
+            (Lobe::GlossyTransmission, frame.to_world(l.i), choice * q, pdf)
+        } else {
+            // q < 1 only where wo refracts.
+            let beta0 = Self::refracted_beta(l.o, l.eta_o, l.eta_t)?;
+            (Lobe::SpecularTransmission, Self::specular_refraction(wo, n, &l, beta0), choice * (1.0 - q), 0.0)
+        };
+        // Light from a wi inside glass beyond the critical angle cannot reach wo: such a sample
+        // carries nothing and is still returned, so `pdf` stays its density.
+        let factor = self.lobe_factor(lobe, &l, Mode::Radiance);
+        (lobe_pdf > 0.0).then_some(Sample { wi, lobe, factor, lobe_pdf, pdf })
+    }
+
+    /// The refracted direction of travel along −wo, whose β is `beta0`.
+    #[inline]
+    fn specular_refraction(wo: Vec3A, n: Vec3A, l: &Local, beta0: [f64; 2]) -> Vec3A {
+        let d = -wo;
+        let n_in = if d.dot(n) < 0.0 { n } else { -n };
+        let cos_t = (1.0 - length(beta0).powi(2)).max(0.0).sqrt();
+        refract(d, n_in, l.eta_o, l.eta_t, l.o.z as f64, cos_t)
     }
 
     /// A dielectric's Fresnel reflectance for light from `wo`; 1 for a reflector.
@@ -383,20 +460,38 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
         }
     }
 
+    /// Probability that `sample` reflects: the Fresnel R of wo for particles (exact sampling);
+    /// for camera paths at most 1 − `DEFENSIVE_REFRACTION`, so that the refracted side, which
+    /// light reaches wo from even where wo itself totally reflects, is always sampled.
+    #[inline]
+    fn reflection_share(&self, l: &Local, mode: Mode) -> f64 {
+        let r = self.split(l);
+        match (mode, self.is_dielectric()) {
+            (Mode::Radiance, true) => r.min(1.0 - DEFENSIVE_REFRACTION),
+            _ => r,
+        }
+    }
+
+    /// Within a camera path's refraction, the share drawn from the scattered lobe: TIS about wo
+    /// (the specular share's complement, so that the specular weight is T·(η_o/η_t)²/choice),
+    /// or all of it where wo has no refracted direction.
+    #[inline]
+    fn glossy_share_of_light(&self, l: &Local) -> f64 {
+        match Self::refracted_beta(l.o, l.eta_o, l.eta_t) {
+            Some(_) => self.table.tis(length(Local::beta(l.o))),
+            None => 1.0,
+        }
+    }
+
     /// f·|cosθ_i| of `lobe` toward `l.i` over the lobe's own direction density (that of the
-    /// scattered offset, or the delta): R·TIS, R·(1 − TIS), and for radiance through a
-    /// dielectric the light's own transmittance and density against those sampled from `wo`.
+    /// scattered offset, or the delta): R·TIS, R·(1 − TIS); for a camera path's scattered
+    /// refraction, drawn in the light's variables, T(θ_i)·πA·W(4)·(η_o/η_t)².
     #[inline]
     fn lobe_factor(&self, lobe: Lobe, l: &Local, mode: Mode) -> Lanes<N> {
         let bo = Local::beta(l.o);
         // Evaluated only by the lobes that take them (a metal's is four complex Fresnel terms).
         let r_o = || self.reflectance(l.o.z as f64, l.eta_o, l.eta_t);
         let t_o = || 1.0 - self.split(l);
-        // The delta refraction's radiance weight (η_o/η_t)² (see `f`).
-        let scale = match mode {
-            Mode::Radiance => (l.eta_o / l.eta_t).powi(2),
-            Mode::Importance => 1.0,
-        };
         let refracted = || Self::refracted_beta(l.o, l.eta_o, l.eta_t);
         match lobe {
             Lobe::SpecularReflection => r_o() * (1.0 - self.table.tis(length(bo))),
@@ -408,26 +503,29 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
                 }
             }
             Lobe::SpecularTransmission => {
-                // TIS about the direction the light leaves along: wi for power, wo for radiance.
-                let leaving = match mode {
-                    Mode::Importance => refracted().map_or(1.0, length),
-                    Mode::Radiance => length(bo),
+                // TIS about the direction the light leaves along: wi for power, wo for radiance,
+                // whose delta refraction alone takes the radiance factor (η_o/η_t)² (see `f`).
+                let (leaving, scale) = match mode {
+                    Mode::Importance => (refracted().map_or(1.0, length), 1.0),
+                    Mode::Radiance => (length(bo), (l.eta_o / l.eta_t).powi(2)),
                 };
                 Lanes::splat(t_o() * (1.0 - self.table.tis(leaving)) * scale)
             }
-            Lobe::GlossyTransmission => {
-                let Some(beta0) = refracted() else { return Lanes::ZERO };
-                let tis = self.table.tis(length(beta0));
-                match mode {
-                    Mode::Importance => Lanes::splat(t_o() * tis),
-                    Mode::Radiance => {
-                        let Some(beta_light) = Self::refracted_beta(l.i, l.eta_t, l.eta_o) else { return Lanes::ZERO };
-                        let t_light = 1.0 - fresnel_dielectric(-l.i.z as f64, l.eta_t, l.eta_o).0;
-                        let ratio = self.table.bsdf(bo, beta_light) / self.table.bsdf(Local::beta(l.i), beta0);
-                        Lanes::splat(t_light * tis * ratio)
-                    }
+            Lobe::GlossyTransmission => match mode {
+                Mode::Importance => {
+                    let Some(beta0) = refracted() else { return Lanes::ZERO };
+                    Lanes::splat(t_o() * self.table.tis(length(beta0)))
                 }
-            }
+                Mode::Radiance => {
+                    // f = T(θ_i)·A·shape(|Δ|²) over the density shape(|Δ|²)(η_t/η_o)²/(πW(4)).
+                    if Self::refracted_beta(l.i, l.eta_t, l.eta_o).is_none() {
+                        return Lanes::ZERO;
+                    }
+                    let t_light = 1.0 - fresnel_dielectric(-l.i.z as f64, l.eta_t, l.eta_o).0;
+                    let k = l.eta_o / l.eta_t;
+                    Lanes::splat(t_light * self.table.a * PI * self.table.total() * k * k)
+                }
+            },
             _ => Lanes::ZERO,
         }
     }

@@ -34,6 +34,17 @@ pub enum Mode {
     Importance,
 }
 
+impl Mode {
+    /// The mode of a path that runs the other way (a BDPT subpath's reverse density).
+    #[inline]
+    pub fn reversed(self) -> Mode {
+        match self {
+            Mode::Radiance => Mode::Importance,
+            Mode::Importance => Mode::Radiance,
+        }
+    }
+}
+
 /// How a scattered path left the surface.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Lobe {
@@ -343,15 +354,16 @@ impl<'a, const N: usize> Bsdf<'a, N> {
         }
     }
 
-    /// Solid-angle density with which `sample` from `wo` returns `wi`; zero for delta lobes.
+    /// Solid-angle density with which `sample` from `wo` in `mode` returns `wi`; zero for delta
+    /// lobes. Only ABg glass samples the two modes differently.
     #[inline]
-    pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f64 {
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A, mode: Mode) -> f64 {
         match &self.model {
             Model::Lambertian(m) => m.pdf(wo, wi, self.n),
             Model::Conductor(m) => m.pdf(wo, wi, self.n),
             Model::RoughDielectric(m) => m.pdf(wo, wi, self.n),
             Model::Plastic(m) => m.pdf(wo, wi, self.n),
-            Model::Abg(m) => m.pdf(wo, wi, self.n),
+            Model::Abg(m) => m.pdf(wo, wi, self.n, mode),
             _ => 0.0,
         }
     }

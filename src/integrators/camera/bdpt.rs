@@ -290,7 +290,7 @@ impl ImageKernel<'_> {
                 path[index].delta = true;
                 (0.0, 0.0)
             } else {
-                (sampled.pdf, bsdf.pdf(new_dir, -dir))
+                (sampled.pdf, bsdf.pdf(new_dir, -dir, mode.reversed()))
             };
             path[index - 1].pdf_rev = to_area(pdf_rev, p, &path[index - 1]);
             pdf_dir = pdf_fwd;
@@ -351,8 +351,9 @@ impl ImageKernel<'_> {
         }
     }
 
-    /// Area density with which `v`, reached from `prev`, samples `next` (pbrt's Vertex::Pdf).
-    fn pdf_area(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex) -> f64 {
+    /// Area density with which `v`, reached from `prev`, samples `next` (pbrt's Vertex::Pdf), as
+    /// a subpath of `mode` would: importance walking toward the camera, radiance toward the light.
+    fn pdf_area(&self, v: &Vertex, prev: Option<&Vertex>, next: &Vertex, mode: Mode) -> f64 {
         match v.kind {
             Kind::Light(_) => self.pdf_light(v, next),
             Kind::Camera => to_area(self.camera.direction_pdf((next.p - v.p).normalize()), v.p, next),
@@ -360,7 +361,7 @@ impl ImageKernel<'_> {
                 let (Some(b), Some(prev)) = (v.bsdf, prev) else { return 0.0 };
                 let wp = (prev.p - v.p).normalize();
                 let wn = (next.p - v.p).normalize();
-                to_area(b.pdf(wp, wn), v.p, next)
+                to_area(b.pdf(wp, wn, mode), v.p, next)
             }
         }
     }
@@ -457,16 +458,16 @@ impl ImageKernel<'_> {
         let pt = &cv[t - 1];
         let pt_minus = (t > 1).then(|| &cv[t - 2]);
         let pt_rev = match qs {
-            Some(q) => self.pdf_area(q, qs_minus, pt),
+            Some(q) => self.pdf_area(q, qs_minus, pt, Mode::Importance),
             None => self.pdf_light_origin(pt),
         };
         let pt_minus_rev = pt_minus.map_or(0.0, |pm| match qs {
-            Some(q) => self.pdf_area(pt, Some(q), pm),
+            Some(q) => self.pdf_area(pt, Some(q), pm, Mode::Importance),
             None => self.pdf_light(pt, pm),
         });
-        let qs_rev = qs.map_or(0.0, |q| self.pdf_area(pt, pt_minus, q));
+        let qs_rev = qs.map_or(0.0, |q| self.pdf_area(pt, pt_minus, q, Mode::Radiance));
         let qs_minus_rev = match (qs, qs_minus) {
-            (Some(q), Some(qm)) => self.pdf_area(q, Some(pt), qm),
+            (Some(q), Some(qm)) => self.pdf_area(q, Some(pt), qm, Mode::Radiance),
             _ => 0.0,
         };
 

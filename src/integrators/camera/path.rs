@@ -153,7 +153,7 @@ impl ImageKernel<'_> {
         } else {
             let cos_l = (-wi).dot(lp.normal) as f64;
             let p_light = pick * self.emitter.position_pdf(light) * d2 / cos_l;
-            power_heuristic(p_light, bsdf.pdf(wo, wi))
+            power_heuristic(p_light, bsdf.pdf(wo, wi, Mode::Radiance))
         };
         counters.shadow_rays += 1;
         if !self.geo().visible(vertex, lp.end()) {
