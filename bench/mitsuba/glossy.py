@@ -396,10 +396,13 @@ def main() -> int:
                     help="default bench/mitsuba/results_glossy.md (results_glossy_swapped.md with --swap)")
     ap.add_argument("--docs-image", type=Path, default=None,
                     help="also copy side_by_side.png here (e.g. docs/mitsuba_glossy.png)")
+    ap.add_argument("--conventions", choices=["photon", "mitsuba"], default="photon",
+                    help="mitsuba: the --photon binary was built with the mitsuba-conventions feature "
+                         "(separable Smith G, Mitsuba's rough-coat tables; run.sh --mitsuba-conventions)")
     args = ap.parse_args()
     if args.runs < 4:
         raise SystemExit("--runs must be at least 4 (the standard errors come from the runs' spread)")
-    suffix = "_swapped" if args.swap else ""
+    suffix = ("_swapped" if args.swap else "") + ("_mitsuba_conventions" if args.conventions == "mitsuba" else "")
     args.out = args.out or HERE / "out" / f"glossy{suffix}"
     args.results = args.results or HERE / f"results_glossy{suffix}.md"
 
@@ -500,7 +503,8 @@ def main() -> int:
         mname = mat_of.get(f["surface"], "(emitter)")
         mat = toml["materials"].get(mname, {})
         g = ""
-        if mat.get("type") == "conductor" and "metal" in mat and mat.get("roughness", 0) > 0:
+        if mat.get("type") == "conductor" and "metal" in mat and mat.get("roughness", 0) > 0 \
+                and args.conventions == "photon":
             g = f"{smith_ratio(float(mat['roughness']), f['cos_all'], mat['metal']):.4f}"
         face_lines.append(f"| {f['surface']} | {mname} | {f['poly']} | {f['pixels']} | {f['cos']:.2f} | "
                           f"{r:.4f} ± {se:.4f} | {(r - 1) / se:+.1f} | {g} |")
@@ -525,7 +529,8 @@ def main() -> int:
         )
     table = "\n".join(lines)
     rev = os.environ.get("PHOTON_REV")
-    default_binary = args.photon.resolve() == (ROOT / "target" / "release" / "photon").resolve()
+    built_here = [ROOT / "target" / "release" / "photon", ROOT / "target" / "mitsuba-conventions" / "release" / "photon"]
+    default_binary = any(args.photon.resolve() == b.resolve() for b in built_here)
     photon_rev = f" (commit {rev})" if default_binary and rev else ""
     a_all = stats[ALL]
     swapped = f" with --swap {' '.join(args.swap)} in both renderers" if args.swap else ""
@@ -568,7 +573,13 @@ def main() -> int:
     ]
     used = {s["material"] for s in toml["surfaces"]}
     plastics = [v for k, v in toml["materials"].items() if v["type"] == "plastic" and k in used and v.get("roughness", 0) > 0]
-    if plastics:
+    if args.conventions == "mitsuba":
+        notes.insert(1, "photon here is built with `--features mitsuba-conventions` (bench only): Mitsuba 3's "
+                     "separable Smith G1(ω_o)·G1(ω_i) instead of its height-correlated G2, and Mitsuba's rough-coat "
+                     "tables for the plastic (its transmittance ∫D_vis(1 − F)G1(ω_t), which loses the refracted "
+                     "ray's masking, and F̄_int = 2·mean(E μ)), so that the two renderers evaluate the same BSDFs "
+                     "and any difference left is transport.")
+    elif plastics:
         pl = plastics[0]
         coat = plastic_coat.predict(float(pl.get("ior", 1.5)), float(pl["roughness"]))
         notes.insert(5, "The two rough plastics differ by construction (bench/mitsuba/plastic_coat.py): "
@@ -579,8 +590,10 @@ def main() -> int:
     text = table + "\n\n" + face_table + "\n\n" + "\n".join(f"* {x}" for x in notes) + "\n"
     print()
     print(text)
-    title = "photon vs Mitsuba 3 ptracer on the glossy Cornell box"
-    cmd = "bash bench/mitsuba/run.sh --scene glossy" + "".join(f" --swap {sw}" for sw in args.swap)
+    title = "photon vs Mitsuba 3 ptracer on the glossy Cornell box" \
+        + (", photon built with Mitsuba's microfacet conventions" if args.conventions == "mitsuba" else "")
+    cmd = "bash bench/mitsuba/run.sh --scene glossy" + "".join(f" --swap {sw}" for sw in args.swap) \
+        + (" --mitsuba-conventions" if args.conventions == "mitsuba" else "")
     args.results.write_text(f"# {title}{swapped} (`{cmd}`)\n\n" + text)
 
     # Pictures, at one exposure.

@@ -3,6 +3,7 @@
 #
 #   bash bench/mitsuba/run.sh [compare.py options, e.g. --spp 8 --ref-photons 40000000]
 #   bash bench/mitsuba/run.sh --scene glossy [glossy.py options, e.g. --runs 16 --spp 8]
+#   bash bench/mitsuba/run.sh --scene glossy --mitsuba-conventions
 #
 # Makes bench/mitsuba/.venv (Mitsuba from PyPI, CPU variants), builds photon in release mode, then
 # renders the same scene with both and prints the table it also writes to bench/mitsuba/results.md.
@@ -12,7 +13,10 @@
 # runs glossy.py instead: scenes/cornell_glossy.toml (rough aluminium, frosted glass, a rough
 # plastic back wall) with both renderers at equal light paths, compared tile by tile in units of
 # the combined standard error; table in bench/mitsuba/results_glossy.md, images in
-# bench/mitsuba/out/glossy/ (about 6 minutes on 2 cores with the defaults).
+# bench/mitsuba/out/glossy/ (about 6 minutes on 2 cores with the defaults). With
+# --mitsuba-conventions photon is built with the `mitsuba-conventions` feature (separable Smith
+# G, Mitsuba's rough-coat tables) into target/mitsuba-conventions, so that both renderers
+# evaluate the same BSDFs: table in bench/mitsuba/results_glossy_mitsuba_conventions.md.
 #
 # Mitsuba's llvm_ad_* variants need a libLLVM that can compile Dr.Jit's kernels (LLVM 14 and 15
 # abort with "Cannot select: fmaximum"; 19 works): on Debian 12, `apt-get install libllvm19`.
@@ -36,6 +40,17 @@ case "${1:-}" in
         esac ;;
 esac
 
+CONVENTIONS=photon
+rest=()
+for a in "$@"; do
+    if [[ "$a" == --mitsuba-conventions ]]; then CONVENTIONS=mitsuba; else rest+=("$a"); fi
+done
+set -- "${rest[@]+"${rest[@]}"}"
+if [[ "$CONVENTIONS" == mitsuba && "$SCRIPT" != glossy.py ]]; then
+    echo "run.sh: --mitsuba-conventions goes with --scene glossy" >&2
+    exit 2
+fi
+
 if [[ ! -x "$VENV/bin/python" ]]; then
     python3 -m venv "$VENV"
 fi
@@ -43,6 +58,12 @@ fi
     "mitsuba==$MITSUBA_VERSION" "numpy==$NUMPY_VERSION"
 
 (cd "$ROOT" && cargo build --release --quiet)
+EXTRA=()
+if [[ "$CONVENTIONS" == mitsuba ]]; then
+    (cd "$ROOT" && CARGO_TARGET_DIR="$ROOT/target/mitsuba-conventions" \
+        cargo build --release --quiet --features mitsuba-conventions)
+    EXTRA=(--photon "$ROOT/target/mitsuba-conventions/release/photon" --conventions mitsuba)
+fi
 # Which photon that is (the table names it).
 if rev="$(git -C "$ROOT" rev-parse --short HEAD 2>/dev/null)"; then
     git -C "$ROOT" diff --quiet HEAD -- src Cargo.toml Cargo.lock || rev="$rev+uncommitted"
@@ -67,5 +88,5 @@ if [[ -z "${DRJIT_LIBLLVM_PATH:-}" ]]; then
 fi
 
 cd "$ROOT"
-"$VENV/bin/python" "$HERE/$SCRIPT" "$@"
+"$VENV/bin/python" "$HERE/$SCRIPT" "${EXTRA[@]+"${EXTRA[@]}"}" "$@"
 echo "run.sh: ${SECONDS} s in all (venv, build and benchmark)"

@@ -112,10 +112,16 @@ impl Ggx {
         1.0 / (1.0 + self.lambda(w))
     }
 
-    /// Height-correlated masking–shadowing G2(wo, wi) = 1/(1 + Λ(wo) + Λ(wi)).
+    /// Height-correlated masking–shadowing G2(wo, wi) = 1/(1 + Λ(wo) + Λ(wi)) (Heitz 2014). A
+    /// build with the `mitsuba-conventions` feature (bench/mitsuba only) takes Mitsuba 3's
+    /// separable G1(wo)·G1(wi) instead.
     #[inline]
     pub fn g2(&self, wo: Vec3A, wi: Vec3A) -> f64 {
-        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        if cfg!(feature = "mitsuba-conventions") {
+            self.g1(wo) * self.g1(wi)
+        } else {
+            1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+        }
     }
 
     /// Density of visible normals seen from `w` (z > 0): D_w(m) = G1(w) max(0, w·m) D(m) / cosθ_w.
