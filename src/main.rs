@@ -364,6 +364,31 @@ fn describe(scene: &Scene) -> String {
             shape
         ));
     }
+    if !scene.media.is_empty() {
+        s.push_str(&format!("media ({}):\n", scene.media.len()));
+        let (lo, hi) = scene.simulation.wavelength_range_nm;
+        for m in &scene.media {
+            let range = |x: &photon::spectrum::Spectrum| {
+                let (a, b) = x.min_max_over((lo, hi));
+                if a == b {
+                    format!("{a}")
+                } else {
+                    format!("{a}–{b}")
+                }
+            };
+            let phase = match m.phase {
+                photon::scene::Phase::Isotropic => "isotropic".to_string(),
+                photon::scene::Phase::HenyeyGreenstein { g } => format!("Henyey–Greenstein g = {g}"),
+            };
+            s.push_str(&format!(
+                "  {}  μa {} /m, μs {} /m, {phase}, {:.6e} m³\n",
+                m.name,
+                range(&m.absorption_per_m),
+                range(&m.scattering_per_m),
+                m.volume_m3
+            ));
+        }
+    }
     s.push_str(&format!("triangles: {}\n", scene.geometry.len()));
     s.push_str(&format!("total power: {:.6} W\n", scene.total_power_w()));
     let (lo, hi) = scene.simulation.wavelength_range_nm;

@@ -78,8 +78,9 @@ pub fn uniform_sphere(u1: f32, u2: f32) -> Vec3A {
     Vec3A::new(r * phi.cos(), r * phi.sin(), z)
 }
 
+/// The direction (x, y, z) of a frame whose z axis is unit `n`, in world coordinates.
 #[inline]
-fn local_to_world(n: Vec3A, x: f32, y: f32, z: f32) -> Vec3A {
+pub fn local_to_world(n: Vec3A, x: f32, y: f32, z: f32) -> Vec3A {
     let (t, s) = basis(n);
     (x * t + y * s + z * n).normalize()
 }

@@ -178,7 +178,7 @@ fn unknown_top_level_key() {
         &[],
         &[
             &at(1, "colour"),
-            "unknown key `colour`; allowed keys here: simulation, camera, scene, materials, surfaces, lights",
+            "unknown key `colour`; allowed keys here: simulation, camera, scene, materials, media, surfaces, lights",
         ],
     );
 }
@@ -1280,4 +1280,99 @@ fn bad_abg_scatter() {
         &[],
         &[&at(line_of(&toml, "scatter"), "materials.white.scatter"), "unknown key `scatter`"],
     );
+}
+
+#[test]
+fn bad_media() {
+    // Each: the material's lines in place of the Lambertian's, the [media] entry, the line's
+    // text, the key path, the message.
+    let fog = "[media.fog]\nabsorption_per_m = 1\nscattering_per_m = 10\n";
+    let glass = "type = \"dielectric\"\nmedium = \"fog\"";
+    let cases: [(&str, &str, &str, &str, &str, &str); 10] = [
+        (
+            "medium-unknown",
+            "type = \"dielectric\"\nmedium = \"smoke\"",
+            fog,
+            "medium =",
+            "materials.white.medium",
+            "unknown medium \"smoke\"; the [media] entries are: fog",
+        ),
+        (
+            "medium-none",
+            glass,
+            "",
+            "medium =",
+            "materials.white.medium",
+            "unknown medium \"fog\": the file has no [media] entries",
+        ),
+        (
+            "medium-and-absorption",
+            "type = \"dielectric\"\nmedium = \"fog\"\nabsorption_per_m = 3",
+            fog,
+            "medium =",
+            "materials.white.medium",
+            "give either medium or absorption_per_m, not both",
+        ),
+        (
+            "medium-outside",
+            "type = \"dielectric\"\nmedium = \"fog\"\noutside_medium = \"fog\"",
+            fog,
+            "outside_medium",
+            "materials.white.outside_medium",
+            "outside_medium is not supported yet",
+        ),
+        (
+            "medium-g",
+            glass,
+            "[media.fog]\nscattering_per_m = 10\nphase = { henyey_greenstein = 1 }\n",
+            "henyey_greenstein",
+            "media.fog.phase.henyey_greenstein",
+            "must lie strictly between −1 and 1, found 1",
+        ),
+        (
+            "medium-phase",
+            glass,
+            "[media.fog]\nscattering_per_m = 10\nphase = \"rayleigh\"\n",
+            "phase",
+            "media.fog.phase",
+            "unknown phase function \"rayleigh\"",
+        ),
+        (
+            "medium-negative",
+            glass,
+            "[media.fog]\nscattering_per_m = -10\n",
+            "scattering_per_m",
+            "media.fog.scattering_per_m",
+            "must not be negative, found -10",
+        ),
+        (
+            "medium-fluorescence",
+            glass,
+            "[media.fog]\nscattering_per_m = 10\nfluorescence = { quantum_yield = 0.9 }\n",
+            "fluorescence",
+            "media.fog.fluorescence",
+            "fluorescence is not supported yet",
+        ),
+        (
+            "medium-key",
+            glass,
+            "[media.fog]\nscatering_per_m = 10\n",
+            "scatering",
+            "media.fog.scatering_per_m",
+            "unknown key `scatering_per_m`",
+        ),
+        (
+            "medium-lambertian",
+            "type = \"lambertian\"\nreflectance = 0.5\nmedium = \"fog\"",
+            fog,
+            "medium =",
+            "materials.white.medium",
+            "unknown key `medium`",
+        ),
+    ];
+    for (name, material, media, needle, key, message) in cases {
+        let toml = format!("{media}\n{}", edit(BASE, "type = \"lambertian\"\nreflectance = 0.5", material));
+        let line = line_of(&toml, needle);
+        expect_bad(name, &toml, &[], &[&at(line, key), message]);
+    }
 }

@@ -16,8 +16,9 @@ use std::path::Path;
 use glam::Vec3A;
 use photon::bsdf::{Bsdf, Mode, Prepared};
 use photon::lights::Emitter;
+use photon::media::phase;
 use photon::sampling::{cosine_hemisphere, cosine_power_lobe, uniform_hemisphere, uniform_sphere, Sampler};
-use photon::scene::{LightShape, Material};
+use photon::scene::{LightShape, Material, Phase};
 use photon::spectrum::Spectrum;
 
 /// A material's run-wide constants, kept for the test's lifetime.
@@ -192,6 +193,37 @@ fn uniform_and_cosine_warps_match_their_pdfs() {
             |w| if cos(w) > 0.0 { (e + 1.0) / (2.0 * PI) * cos(w).powf(e) } else { 0.0 },
         );
     }
+}
+
+#[test]
+fn phase_functions_match_their_pdfs_and_a_neighbouring_g_is_rejected() {
+    // A medium's scattering direction about an arbitrary direction of travel: isotropic, and
+    // Henyey–Greenstein backward, nearly isotropic (below the isotropic cut-off), mildly and
+    // strongly forward (g = 0.75 is tissue's, 0.9 a cloud's).
+    let dir = Vec3A::new(-0.2, 0.6, 0.77).normalize();
+    let cos = |w: Vec3A| w.dot(dir) as f64;
+    assert_matches(
+        "isotropic phase",
+        60,
+        |s| phase::sample(Phase::Isotropic, dir, s.uniform(), s.uniform()),
+        |w| phase::pdf(Phase::Isotropic, cos(w)),
+    );
+    for (k, g) in [-0.5, 1e-6, 0.3, 0.75, 0.9].into_iter().enumerate() {
+        let hg = Phase::HenyeyGreenstein { g };
+        assert_matches(
+            &format!("Henyey–Greenstein g = {g}"),
+            61 + k as u64,
+            |s| phase::sample(hg, dir, s.uniform(), s.uniform()),
+            |w| phase::pdf(hg, cos(w)),
+        );
+    }
+    // g = 0.75 judged against g = 0.7: the harness tells them apart.
+    let (_, _, p, _) = chi2(
+        67,
+        |s| phase::sample(Phase::HenyeyGreenstein { g: 0.75 }, dir, s.uniform(), s.uniform()),
+        |w| phase::pdf(Phase::HenyeyGreenstein { g: 0.7 }, cos(w)),
+    );
+    assert!(p < 1e-9, "p = {p}");
 }
 
 #[test]

@@ -17,6 +17,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("office", "grey", "diffuse_reflection"),
         ("luminaire", "grey", ""),
         ("reflector", "spectral", "spectral, specular_reflection, glossy_reflection"),
+        ("tissue_slab", "grey", "specular_reflection, refraction, absorbing_media, volume_scattering"),
         (
             "glass",
             "spectral",
@@ -79,7 +80,7 @@ fn each_bundled_scene_does_only_the_work_its_effects_call_for() {
     // one and splats nothing; and each effect a scene has does run.
     use photon::run::{apply_options, simulate, RunOptions};
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
-    for scene in ["cornell_box", "furnace", "parallel_plates", "office", "luminaire", "glass"] {
+    for scene in ["cornell_box", "furnace", "parallel_plates", "office", "luminaire", "glass", "tissue_slab"] {
         let mut s = photon::scene::load(std::path::Path::new(&format!("{dir}/{scene}.toml"))).unwrap();
         let photons = 20_000;
         let opts = RunOptions { photons: Some(photons), threads: Some(2), ..Default::default() };
@@ -91,5 +92,7 @@ fn each_bundled_scene_does_only_the_work_its_effects_call_for() {
         assert_eq!(c.fresnel_evaluations > 0, fx.refraction, "{scene}: {} Fresnel terms", c.fresnel_evaluations);
         assert_eq!(c.shadow_rays > 0, fx.camera, "{scene}: {} shadow rays", c.shadow_rays);
         assert_eq!(c.splats > 0, fx.camera, "{scene}: {} splats", c.splats);
+        assert_eq!(c.free_flights > 0, fx.volume_scattering, "{scene}: {} free flights", c.free_flights);
+        assert_eq!(c.phase_samples > 0, fx.volume_scattering, "{scene}: {} phase samples", c.phase_samples);
     }
 }

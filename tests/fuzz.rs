@@ -600,6 +600,8 @@ const TOML_KEYS: &[&str] = &[
     "scatter = { abg = [1e-300, 1e-300, 8] }",
     "scatter = { abg = [0.3, 0, 0] }",
     "scatter = { abg = [] }",
+    "medium = \"fog\"",
+    "phase = { henyey_greenstein = 0.9999999999 }",
     "metal = \"Au\"",
     "metal = \"Fe\"",
     "k = 1e300",
@@ -665,6 +667,8 @@ const TOML_TABLES: &[&str] = &[
     "[reference]\nsurface = \"floor\"\nincident_w = 0\n",
     "[materials.m2]\ntype = \"mirror\"\nreflectance = { table = [[1, 1], [100000, 0]] }\n\n[[surfaces]]\nname = \"m2s\"\nmaterial = \"m2\"\nshape = { type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.1, subdivisions = 1 }\nspectrum_bins = 2\n",
     "[materials.g2]\ntype = \"dielectric\"\nior = 1e300\nabsorption_per_m = 1e300\n\n[[surfaces]]\nname = \"g2s\"\nmaterial = \"g2\"\nshape = { type = \"box\", min = [0.2, 0.2, 0.2], max = [0.8, 0.8, 0.8] }\n",
+    "[media.fog]\nabsorption_per_m = 1e-300\nscattering_per_m = 3\nphase = { henyey_greenstein = -0.999999 }\n\n[materials.f2]\ntype = \"dielectric\"\nior = 1.33\nmedium = \"fog\"\n\n[[surfaces]]\nname = \"f2s\"\nmaterial = \"f2\"\nshape = { type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.3, subdivisions = 2 }\n",
+    "[media.ink]\nabsorption_per_m = 1e300\nscattering_per_m = { table = [[1, 0], [100000, 50]] }\n\n[materials.f3]\ntype = \"dielectric\"\nior = 1\noutside_ior = 1\nmedium = \"ink\"\n\n[[surfaces]]\nname = \"f3s\"\nmaterial = \"f3\"\nshape = { type = \"box\", min = [0.1, 0.1, 0.1], max = [0.4, 0.4, 0.4] }\n",
     "[[surfaces]]\nname = \"tiny\"\nmaterial = \"absorber\"\nshape = { type = \"quad\", corners = [[0, 0, 0], [1e-12, 0, 0], [1e-12, 1e-12, 0], [0, 1e-12, 0]] }\nmap = { resolution = [2, 2] }\n",
 ];
 

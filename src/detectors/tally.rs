@@ -165,6 +165,10 @@ pub struct Counters {
     pub wavelength_samples: u64,
     /// Splats that reached the film.
     pub splats: u64,
+    /// Free-flight distances drawn in scattering media, and phase-function samples taken there
+    /// (none in a scene without scattering media).
+    pub free_flights: u64,
+    pub phase_samples: u64,
     /// Seconds the batches took to trace, summed over batches (thread time, not wall time).
     pub trace_seconds: f64,
 }
@@ -176,14 +180,20 @@ impl Counters {
         self.fresnel_evaluations += o.fresnel_evaluations;
         self.wavelength_samples += o.wavelength_samples;
         self.splats += o.splats;
+        self.free_flights += o.free_flights;
+        self.phase_samples += o.phase_samples;
         self.trace_seconds += o.trace_seconds;
     }
 }
 
 impl Tallies {
-    /// Empty tallies sized for a scene's surfaces, map texels, far-field bins and spectral bins.
+    /// Empty tallies sized for a scene's surfaces (and media, for absorption), map texels,
+    /// far-field bins and spectral bins.
     pub fn for_scene(scene: &crate::scene::Scene) -> Self {
         let mut t = Tallies::new(scene.surfaces.len(), scene.map_texels());
+        // Absorbed power has a row per surface, then one per medium.
+        t.absorbed = Channel::new(scene.surfaces.len() + scene.media.len());
+        t.absorbed_lm = Channel::new(scene.surfaces.len() + scene.media.len());
         t.farfield = Channel::new(scene.farfield_bins());
         t.farfield_lm = Channel::new(scene.farfield_bins());
         t.spectra = Channel::new(scene.spectrum_bins());

@@ -10,7 +10,7 @@ use glam::Vec3A;
 use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::{HistoryScores, Tallies};
-use crate::geometry::{Geometry, RayEnd};
+use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
 use crate::sampling::Sampler;
@@ -84,10 +84,12 @@ pub struct Kernel<'a> {
 pub const PANIC_TEST_SEED: u64 = 0xDEAD_BEEF;
 
 impl Kernel<'_> {
-    /// Whether hero wavelengths are used: spectral transport with a film and no dispersion.
+    /// Whether hero wavelengths are used: spectral transport with a film, no dispersion and no
+    /// scattering medium (whose free flights follow the hero's own μt: each photon keeps one
+    /// wavelength there).
     pub fn uses_hero(&self) -> bool {
         let fx = &self.scene.effects;
-        self.options.hero && fx.spectral && !fx.dispersion && self.camera.is_some()
+        self.options.hero && fx.spectral && !fx.dispersion && !fx.volume_scattering && self.camera.is_some()
     }
 
     /// Traces one batch, dispatching once to the kernel specialised for the run.
@@ -215,7 +217,9 @@ impl Kernel<'_> {
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
         let mut out = Tallies::for_scene(scene);
         let mut incident = HistoryScores::new(n_surfaces);
-        let mut absorbed = HistoryScores::new(n_surfaces);
+        // A row per surface, then one per medium (`[media]`).
+        let mut absorbed = HistoryScores::new(n_surfaces + scene.media.len());
+        let surface_medium = &scene.surface_medium;
         // Irradiance maps: one branch per arrival, not taken in scenes without maps.
         let maps: Vec<Option<&SurfaceMap>> = scene.surfaces.iter().map(|s| s.map.as_ref()).collect();
         let has_maps = maps.iter().any(|m| m.is_some());
@@ -227,12 +231,13 @@ impl Kernel<'_> {
         let has_spectra = spectrum_bins.iter().any(|b| b.is_some());
         let mut spectra = HistoryScores::new(scene.spectrum_bins());
         let mut spectra_absorbed = HistoryScores::new(scene.spectrum_bins());
-        // Absorbed weight to its surface, and to the surface's wavelength bin when it has one.
+        // Absorbed weight to its surface (or medium row), and to the surface's wavelength bin
+        // when it has one.
         let absorb =
             |surface: u32, x: f64, lambda: f64, absorbed: &mut HistoryScores, spectra_absorbed: &mut HistoryScores| {
                 absorbed.add(surface, x);
                 if SPECTRAL && has_spectra {
-                    if let Some((bins, first)) = spectrum_bins[surface as usize] {
+                    if let Some(&Some((bins, first))) = spectrum_bins.get(surface as usize) {
                         let k = (((lambda - range.0) / (range.1 - range.0) * bins as f64) as usize).min(bins - 1);
                         spectra_absorbed.add((first + k) as u32, x);
                     }
@@ -271,7 +276,49 @@ impl Kernel<'_> {
                 if DIELECTRIC { self.emitter.medium_at(birth.light, birth.prim) } else { None };
             loop {
                 out.counters.rays += 1;
-                let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else {
+                let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+                // The medium is the dielectric the photon last refracted into, or the one its light
+                // sits in (`Emitter::medium_at`); without dielectrics none of this is compiled in.
+                // A `[media]` medium that scatters: a free flight t ~ μt e^{−μt t}; a collision
+                // before the next surface absorbs the share μa/μt there (expected value; analog:
+                // survives with the albedo μs/μt) and scatters by the phase function. Between
+                // collisions nothing is lost, so reaching the surface costs nothing more.
+                let volume = if DIELECTRIC { medium.and_then(|m| surface_medium[m as usize]) } else { None };
+                let mut absorbing = None;
+                if let Some(v) = volume {
+                    let med = &scene.media[v as usize];
+                    let mu_s = med.scattering_per_m.eval(lambda);
+                    let mu_a = med.absorption_per_m.eval(lambda);
+                    if mu_s > 0.0 {
+                        out.counters.free_flights += 1;
+                        let mu_t = mu_a + mu_s;
+                        let t = media::free_flight(mu_t, s.uniform());
+                        if t < next.map_or(f64::INFINITY, |h| h.t as f64) {
+                            let row = (n_surfaces + v as usize) as u32;
+                            let albedo = mu_s / mu_t;
+                            if EXPECTED && weight >= ROULETTE_WEIGHT {
+                                absorb(row, weight * (1.0 - albedo), lambda, &mut absorbed, &mut spectra_absorbed);
+                                weight *= albedo;
+                            } else if !(s.uniform() < albedo) {
+                                absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                                break;
+                            }
+                            if scatterings == max_bounces {
+                                out.truncated += weight;
+                                break;
+                            }
+                            scatterings += 1;
+                            out.counters.phase_samples += 1;
+                            origin += dir * t as f32;
+                            dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
+                            skip = NO_PRIM;
+                            continue;
+                        }
+                    } else if mu_a > 0.0 {
+                        absorbing = Some((&med.absorption_per_m, (n_surfaces + v as usize) as u32));
+                    }
+                }
+                let Some(hit) = next else {
                     out.escaped += weight;
                     for d in detectors {
                         farfield.add(d.bin_of(dir) as u32, weight);
@@ -287,27 +334,28 @@ impl Kernel<'_> {
 
                 // Beer–Lambert: crossing an absorbing medium over distance t, a photon keeps the
                 // fraction exp(−α t) (analog: survives with that probability); the rest is
-                // absorbed by the medium, tallied to its surface. The medium is the dielectric the
-                // photon last refracted into, or the one its light sits in (`Emitter::medium_at`).
-                if let Some(m) = medium {
-                    if let Some(alpha) = media::absorption(materials[m as usize]) {
-                        let t = hit.t as f64;
-                        let keep = media::transmittance::<SPECTRAL, 1>(alpha, &[lambda], t).0[0];
-                        if EXPECTED && weight >= ROULETTE_WEIGHT {
-                            absorb(m, weight * (1.0 - keep), lambda, &mut absorbed, &mut spectra_absorbed);
-                            weight *= keep;
-                            if weight == 0.0 {
-                                // exp(−αt) underflowed: the medium took everything.
-                                break;
-                            }
-                        } else if s.uniform() >= keep {
-                            absorb(m, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                // absorbed by the medium: tallied to its `[media]` row, or for a dielectric's own
+                // `absorption_per_m` to its surface.
+                if volume.is_none() {
+                    absorbing = medium.and_then(|m| media::absorption(materials[m as usize]).map(|a| (a, m)));
+                }
+                if let Some((alpha, row)) = absorbing {
+                    let t = hit.t as f64;
+                    let keep = media::transmittance::<SPECTRAL, 1>(alpha, &[lambda], t).0[0];
+                    if EXPECTED && weight >= ROULETTE_WEIGHT {
+                        absorb(row, weight * (1.0 - keep), lambda, &mut absorbed, &mut spectra_absorbed);
+                        weight *= keep;
+                        if weight == 0.0 {
+                            // exp(−αt) underflowed: the medium took everything.
                             break;
                         }
-                        if HERO {
-                            let k = media::transmittance::<true, 4>(alpha, &hero.lambda, t);
-                            hero.event::<EXPECTED>(|i| (k.0[i], k.0[i], k.0[i]));
-                        }
+                    } else if s.uniform() >= keep {
+                        absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                        break;
+                    }
+                    if HERO {
+                        let k = media::transmittance::<true, 4>(alpha, &hero.lambda, t);
+                        hero.event::<EXPECTED>(|i| (k.0[i], k.0[i], k.0[i]));
                     }
                 }
 

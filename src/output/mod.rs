@@ -37,6 +37,15 @@ pub struct SurfaceRow {
     pub illuminance_lx_stderr: f64,
 }
 
+/// A participating medium's row of flux.json: the power that ended in its volume.
+#[derive(Serialize, Clone, Debug)]
+pub struct MediumRow {
+    pub name: String,
+    pub volume_m3: f64,
+    pub absorbed_w: f64,
+    pub absorbed_w_stderr: f64,
+}
+
 /// The flux.csv columns, in order.
 const CSV_COLUMNS: &str = "name,area_m2,incident_w,incident_w_stderr,absorbed_w,absorbed_w_stderr,rel_error,\
 incident_lm,incident_lm_stderr,absorbed_lm,absorbed_lm_stderr,irradiance_w_m2,irradiance_w_m2_stderr,\
@@ -70,6 +79,9 @@ pub struct Flux {
     /// Σ over lights of power × luminous efficacy of its spectrum.
     pub emitted_lm: f64,
     pub surfaces: Vec<SurfaceRow>,
+    /// `[media]`, after the surfaces in the absorbed tallies (absent without media).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub media: Vec<MediumRow>,
     pub ledger: Ledger,
 }
 
@@ -152,8 +164,17 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
             }
         })
         .collect();
+    let media = scene
+        .media
+        .iter()
+        .enumerate()
+        .map(|(k, m)| {
+            let (absorbed_w, absorbed_w_stderr) = r.absorbed(scene.surfaces.len() + k);
+            MediumRow { name: m.name.clone(), volume_m3: m.volume_m3, absorbed_w, absorbed_w_stderr }
+        })
+        .collect();
     let emitted_lm = scene.lights.iter().map(|l| l.power_w * l.lm_per_w).sum();
-    Flux { photons: t.photons, emitted_w: r.emitted_w, emitted_lm, surfaces, ledger: t.ledger(r.emitted_w) }
+    Flux { photons: t.photons, emitted_w: r.emitted_w, emitted_lm, surfaces, media, ledger: t.ledger(r.emitted_w) }
 }
 
 pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
@@ -245,7 +266,8 @@ pub fn write_json<T: Serialize>(dir: &Path, name: &str, value: &T) -> Result<Pat
 
 /// The per-surface table printed at the end of a run.
 pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
-    let width = f.surfaces.iter().map(|r| r.name.len()).max().unwrap_or(4).max(7);
+    let width =
+        f.surfaces.iter().map(|r| r.name.len()).chain(f.media.iter().map(|m| m.name.len())).max().unwrap_or(4).max(7);
     let mut s = String::new();
     if f.surfaces.is_empty() {
         s.push_str("no surfaces to tally (the scene has only point lights and detectors)\n");
@@ -261,6 +283,12 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
         s.push_str(&format!(
             "{:<width$}  {:>12.6}  {:>10.3e}  {:>12.6}  {:>10.3e}  {:>8}  {:>12.5e}\n",
             r.name, r.incident_w, r.incident_w_stderr, r.absorbed_w, r.absorbed_w_stderr, rel, r.illuminance_lx
+        ));
+    }
+    for m in &f.media {
+        s.push_str(&format!(
+            "{:<width$}  {:>12}  {:>10}  {:>12.6}  {:>10.3e}  (medium, {:.4e} m³)\n",
+            m.name, "-", "", m.absorbed_w, m.absorbed_w_stderr, m.volume_m3
         ));
     }
     let l = &f.ledger;

@@ -16,7 +16,7 @@ use crate::spectrum::photometry;
 use crate::spectrum::Spectrum;
 
 const ROOT_KEYS: &[&str] =
-    &["simulation", "camera", "scene", "materials", "surfaces", "lights", "reference", "detectors"];
+    &["simulation", "camera", "scene", "materials", "media", "surfaces", "lights", "reference", "detectors"];
 
 /// Largest coordinate accepted, in metres: far beyond any real scene, and small enough that
 /// the BVH's single-precision bounds and surface areas cannot overflow.
@@ -205,7 +205,8 @@ impl<'s> Loader<'s> {
         let simulation = self.simulation(root)?;
         let range = simulation.wavelength_range_nm;
 
-        let (mut materials, material_index) = self.materials(root, range)?;
+        let mut media = self.media(root)?;
+        let (mut materials, material_index, material_medium) = self.materials(root, range, &media)?;
         let mut names = Names::default();
         let entries = self.surface_entries(root, &material_index, &mut names)?;
         let mut light_specs = self.light_specs(root, &material_index, range, &mut names)?;
@@ -221,11 +222,23 @@ impl<'s> Loader<'s> {
         let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
-        let effects = effects_in_use(&materials, &surfaces, range, camera.is_some());
+        let surface_medium: Vec<Option<u32>> = surfaces.iter().map(|s| material_medium[s.material]).collect();
+        let mut effects = effects_in_use(&materials, &surfaces, range, camera.is_some());
+        for m in surface_medium.iter().flatten().map(|&m| &media[m as usize]) {
+            let positive = |s: &Spectrum| s.min_max_over(range).1 > 0.0;
+            let varies = |s: &Spectrum| s.constant_over(range).is_none();
+            effects.absorbing_media |= positive(&m.absorption_per_m);
+            effects.volume_scattering |= positive(&m.scattering_per_m);
+            effects.spectral |= varies(&m.absorption_per_m) || varies(&m.scattering_per_m);
+        }
         let detectors = self.detectors(root, origin_m)?;
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
+        }
+        for m in &mut media {
+            simplify(&mut m.absorption_per_m, range);
+            simplify(&mut m.scattering_per_m, range);
         }
 
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
@@ -234,7 +247,13 @@ impl<'s> Loader<'s> {
         let geometry = Geometry::build_with_tangents(tris, tri_surface, tri_tangent)
             .map_err(|m| InputError::new(self.src.file, "", None, m))?;
         let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
-        self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
+        let volumes =
+            self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
+        for (s, m) in surface_medium.iter().enumerate() {
+            if let Some(m) = m {
+                media[*m as usize].volume_m3 += volumes[s];
+            }
+        }
         Ok(Scene {
             path: path.to_path_buf(),
             simulation,
@@ -243,6 +262,8 @@ impl<'s> Loader<'s> {
             lights,
             camera,
             geometry,
+            media,
+            surface_medium,
             effects,
             detectors,
             warnings,
@@ -254,24 +275,124 @@ impl<'s> Loader<'s> {
 
     /// `[materials]`: the built-in absorber at index 0, then each material in file order, and
     /// the index of each name.
-    fn materials(&self, root: Table<'s, '_>, range: (f64, f64)) -> R<(Vec<NamedMaterial>, HashMap<String, usize>)> {
+    /// `[materials]`: the built-in absorber at index 0, then each material in file order, the
+    /// index of each name, and per material the medium filling it (a dielectric's `medium`).
+    #[allow(clippy::type_complexity)]
+    fn materials(
+        &self,
+        root: Table<'s, '_>,
+        range: (f64, f64),
+        media: &[Medium],
+    ) -> R<(Vec<NamedMaterial>, HashMap<String, usize>, Vec<Option<u32>>)> {
         let mut materials = vec![NamedMaterial { name: "absorber".into(), material: Material::Absorber }];
         let mut material_index: HashMap<String, usize> = HashMap::from([("absorber".to_string(), 0)]);
+        let mut material_medium = vec![None];
         root.with("materials", |n| {
             let t = n.table()?;
             for key in t.keys() {
                 let m = t.require(key, |n| self.material(n, range))?;
+                let medium = t.require(key, |n| self.material_medium(n.table()?, media))?;
                 if key == "absorber" {
                     // A user's own "absorber" replaces the built-in one.
                     materials[0].material = m;
                 } else {
                     material_index.insert(key.to_string(), materials.len());
                     materials.push(NamedMaterial { name: key.to_string(), material: m });
+                    material_medium.push(medium);
                 }
             }
             Ok(())
         })?;
-        Ok((materials, material_index))
+        Ok((materials, material_index, material_medium))
+    }
+
+    /// A dielectric's `medium = "NAME"`: the `[media]` entry filling its inside.
+    fn material_medium(&self, t: Table<'s, '_>, media: &[Medium]) -> R<Option<u32>> {
+        if t.has("outside_medium") {
+            return Err(t.err_at(
+                "outside_medium",
+                "outside_medium is not supported yet: a dielectric borders the world outside every medium \
+                 (nested and adjacent media are still to come)",
+            ));
+        }
+        let Some(name) = t.str("medium")? else { return Ok(None) };
+        if t.has("absorption_per_m") {
+            return Err(t.err_at(
+                "medium",
+                "give either medium or absorption_per_m, not both: absorption_per_m is shorthand for a purely \
+                 absorbing medium, so put the absorption in the [media] entry",
+            ));
+        }
+        match media.iter().position(|m| m.name == name) {
+            Some(i) => Ok(Some(i as u32)),
+            None => {
+                let known: Vec<&str> = media.iter().map(|m| m.name.as_str()).collect();
+                Err(t.err_at(
+                    "medium",
+                    if known.is_empty() {
+                        format!("unknown medium \"{name}\": the file has no [media] entries")
+                    } else {
+                        format!("unknown medium \"{name}\"; the [media] entries are: {}", known.join(", "))
+                    },
+                ))
+            }
+        }
+    }
+
+    /// `[media]`: each homogeneous medium, μa and μs (spectra, per metre) and its phase function.
+    fn media(&self, root: Table<'s, '_>) -> R<Vec<Medium>> {
+        let mut media = Vec::new();
+        root.with("media", |n| {
+            let t = n.table()?;
+            for key in t.keys() {
+                let m = t.require(key, |n| {
+                    let t = n.table()?;
+                    t.allow(&["absorption_per_m", "scattering_per_m", "phase", "fluorescence"])?;
+                    if t.has("fluorescence") {
+                        return Err(t.err_at("fluorescence", "fluorescence is not supported yet"));
+                    }
+                    let coefficient = |k: &str| -> R<Spectrum> {
+                        Ok(t.with(k, |n| self.spectrum(n, SpectrumUse::NonNegative))?
+                            .unwrap_or(Spectrum::Constant(0.0)))
+                    };
+                    let absorption_per_m = coefficient("absorption_per_m")?;
+                    let scattering_per_m = coefficient("scattering_per_m")?;
+                    let phase = t.with("phase", |n| self.phase(n))?.unwrap_or(Phase::Isotropic);
+                    Ok(Medium { name: key.to_string(), absorption_per_m, scattering_per_m, phase, volume_m3: 0.0 })
+                })?;
+                media.push(m);
+            }
+            Ok(())
+        })?;
+        Ok(media)
+    }
+
+    /// `phase = "isotropic"` or `{ henyey_greenstein = g }`, −1 < g < 1.
+    fn phase(&self, n: Node<'s, '_>) -> R<Phase> {
+        if let Ok(name) = n.str() {
+            return match name {
+                "isotropic" => Ok(Phase::Isotropic),
+                other => Err(n.err(format!(
+                    "unknown phase function \"{other}\"; use \"isotropic\" or {{ henyey_greenstein = g }}"
+                ))),
+            };
+        }
+        if !n.is_table() {
+            return Err(n.err("expected \"isotropic\" or { henyey_greenstein = g }"));
+        }
+        let t = n.table()?;
+        t.allow(&["henyey_greenstein"])?;
+        let g = t.require("henyey_greenstein", |n| {
+            let g = n.f64()?;
+            if !(g.abs() < 1.0) {
+                return Err(n.err(format!(
+                    "the Henyey–Greenstein g is the mean cosine of scattering and must lie strictly between −1 and 1, \
+                     found {g}"
+                )));
+            }
+            Ok(g)
+        })?;
+        Ok(Phase::HenyeyGreenstein { g })
     }
 
     /// `[[surfaces]]`: every entry parsed, then their names taken in order.
@@ -851,7 +972,8 @@ impl<'s> Loader<'s> {
     /// A dielectric has an inside (the side its normals point away from), so it must be a closed,
     /// consistently oriented surface with outward normals, inside no other dielectric, and the
     /// camera must be outside them all (camera paths start in air): each is checked here, where
-    /// the README's promise can be kept, rather than misjudged photons later.
+    /// the README's promise can be kept, rather than misjudged photons later. Returns each
+    /// surface's enclosed volume (m³; 0 but for dielectrics).
     fn check_dielectrics(
         &self,
         geo: &Geometry,
@@ -860,17 +982,17 @@ impl<'s> Loader<'s> {
         keys: &[(String, usize)],
         camera: Option<&Camera>,
         camera_line: usize,
-    ) -> R<()> {
+    ) -> R<Vec<f64>> {
         let is_dielectric = |s: usize| matches!(materials[surfaces[s].material].material, Material::Dielectric { .. });
         let dielectrics: Vec<usize> = (0..surfaces.len()).filter(|&s| is_dielectric(s)).collect();
+        let mut volume = vec![0.0f64; surfaces.len()];
         if dielectrics.is_empty() {
-            return Ok(());
+            return Ok(volume);
         }
         let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
         // Edges by their end points' exact f32 bits: each must be used twice, once each way.
         let mut first_prim = vec![u32::MAX; surfaces.len()];
         let mut edges: HashMap<(usize, [[u32; 3]; 2]), (u32, i32)> = HashMap::new();
-        let mut volume = vec![0.0f64; surfaces.len()];
         for prim in 0..geo.len() {
             let s = geo.surface_of(prim) as usize;
             if !is_dielectric(s) {
@@ -956,7 +1078,7 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        Ok(())
+        Ok(volume)
     }
 
     /// Scales a shape's triangles to metres. Coordinates too far out for the BVH's f32 bounds
@@ -1204,7 +1326,16 @@ impl<'s> Loader<'s> {
                 Ok(Material::Plastic { diffuse_reflectance, ior, roughness })
             }
             "dielectric" => {
-                t.allow(&["type", "ior", "outside_ior", "absorption_per_m", "roughness", "scatter"])?;
+                t.allow(&[
+                    "type",
+                    "ior",
+                    "outside_ior",
+                    "absorption_per_m",
+                    "roughness",
+                    "scatter",
+                    "medium",
+                    "outside_medium",
+                ])?;
                 let ior_of = |key: &str, default: f64| -> R<Spectrum> {
                     let s = t.with(key, |n| {
                         let s = self.spectrum(n, SpectrumUse::DielectricIor { range })?;

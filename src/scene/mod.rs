@@ -194,6 +194,29 @@ pub struct NamedMaterial {
     pub material: Material,
 }
 
+/// The angular distribution of a medium's scattering (`phase`); `media::phase` samples it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Phase {
+    Isotropic,
+    /// Henyey–Greenstein with mean cosine g, |g| < 1 (g > 0 forward).
+    HenyeyGreenstein {
+        g: f64,
+    },
+}
+
+/// A homogeneous participating medium (`[media.NAME]`), filling the inside of the dielectrics
+/// that name it with `medium = "NAME"`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Medium {
+    pub name: String,
+    /// μa and μs per metre.
+    pub absorption_per_m: Spectrum,
+    pub scattering_per_m: Spectrum,
+    pub phase: Phase,
+    /// The volume it fills (m³): the enclosed volumes of its dielectrics.
+    pub volume_m3: f64,
+}
+
 /// A named, tallied surface: the triangles of one `[[surfaces]]` entry or of one area light.
 #[derive(Clone, Debug)]
 pub struct Surface {
@@ -292,6 +315,8 @@ pub struct Effects {
     pub refraction: bool,
     pub dispersion: bool,
     pub absorbing_media: bool,
+    /// A medium scatters: photons draw free-flight distances and sample its phase function.
+    pub volume_scattering: bool,
     pub camera: bool,
 }
 
@@ -307,6 +332,7 @@ impl Effects {
             (self.refraction, "refraction"),
             (self.dispersion, "dispersion"),
             (self.absorbing_media, "absorbing_media"),
+            (self.volume_scattering, "volume_scattering"),
             (self.camera, "camera"),
         ];
         all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()
@@ -329,6 +355,9 @@ pub struct Scene {
     pub lights: Vec<Light>,
     pub camera: Option<Camera>,
     pub geometry: Geometry,
+    /// Participating media (`[media]`), and per surface the one filling a dielectric's inside.
+    pub media: Vec<Medium>,
+    pub surface_medium: Vec<Option<u32>>,
     pub effects: Effects,
     /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
     pub detectors: Vec<farfield::FarField>,

@@ -1,6 +1,9 @@
 //! What happens between surfaces: Beer–Lambert absorption inside a dielectric with an
-//! absorption coefficient α(λ), and which medium a path is in after crossing a boundary. Every
+//! absorption coefficient α(λ), free flights through a scattering medium (`[media]`) and its
+//! phase function (`phase`), and which medium a path is in after crossing a boundary. Every
 //! integrator uses these; a path in a clear medium or outside every dielectric loses nothing.
+
+pub mod phase;
 
 use glam::Vec3A;
 
@@ -28,4 +31,11 @@ pub fn transmittance<const SPECTRAL: bool, const N: usize>(alpha: &Spectrum, lam
 #[inline]
 pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A) -> Option<u32> {
     (wi.dot(n) < 0.0).then_some(surface)
+}
+
+/// A free-flight distance in a medium of extinction μt (per m): −ln(1 − u)/μt, exponential with
+/// mean 1/μt (infinite where μt = 0).
+#[inline]
+pub fn free_flight(mu_t: f64, u: f64) -> f64 {
+    -(1.0 - u).ln() / mu_t
 }

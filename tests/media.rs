@@ -1,0 +1,206 @@
+//! Scattering media (`[media]`) against published radiative-transfer results: the van de Hulst /
+//! MCML slabs, Chandrasekhar's semi-infinite medium (its H-function computed here), and Prahl's
+//! adding-doubling with a refractive boundary; the ledger with media rows; Beer–Lambert through
+//! a purely absorbing medium; a scene without media draws no free flights.
+//!
+//! Geometry: a slab is a box of the medium (a dielectric naming it with `medium`), wide enough
+//! that no photon reaches its sides, under a collimated beam at normal incidence; two absorbing
+//! planes far above and below it catch what leaves (reflectance = absorbed above, transmittance
+//! = absorbed below; the beam's 20 µm source quad catches what returns straight back, which is
+//! the specular reflection, and is counted in the reflectance).
+//!
+//! Statistical bounds: |z| < 4 against the reference, z from the run's own standard error (the
+//! references are given to 5 digits, far below it); a false failure has probability 6·10⁻⁵ per
+//! comparison; the seeds are fixed.
+
+mod common;
+use common::surface;
+
+use photon::output::Flux;
+
+/// A slab of `medium` (a `[media]` body) of thickness `d` (the file's unit, cm) and index `n`
+/// in air, under a normal collimated beam of 1 W, between absorbing planes.
+fn slab(medium: &str, d: f64, n: f64, half_width: f64) -> String {
+    format!(
+        r#"[scene]
+unit = "cm"
+
+[simulation]
+max_bounces = 1000000
+
+[media.tissue]
+{medium}
+
+[materials.slab]
+type = "dielectric"
+ior = {n}
+outside_ior = 1.0
+medium = "tissue"
+
+[[surfaces]]
+name = "slab"
+material = "slab"
+shape = {{ type = "box", min = [-{half_width}, -{half_width}, -{d}], max = [{half_width}, {half_width}, 0] }}
+
+[[surfaces]]
+name = "above"
+material = "absorber"
+shape = {{ type = "quad", corners = [[-1e5, -1e5, 1], [1e5, -1e5, 1], [1e5, 1e5, 1], [-1e5, 1e5, 1]] }}
+
+[[surfaces]]
+name = "below"
+material = "absorber"
+shape = {{ type = "quad", corners = [[-1e5, -1e5, -{below}], [1e5, -1e5, -{below}], [1e5, 1e5, -{below}], [-1e5, 1e5, -{below}]] }}
+
+[[lights]]
+name = "beam"
+shape = {{ type = "quad", corners = [[-0.001, -0.001, 0.1], [-0.001, 0.001, 0.1], [0.001, 0.001, 0.1], [0.001, -0.001, 0.1]] }}
+distribution = "collimated"
+power_w = 1
+"#,
+        below = d + 1.0
+    )
+}
+
+/// Reflectance and transmittance with their standard errors, after checking the ledger and that
+/// nothing was truncated or escaped past the planes.
+fn reflectance_transmittance(f: &Flux) -> ((f64, f64), (f64, f64)) {
+    let l = &f.ledger;
+    assert!(l.relative_residual() < 1e-12, "ledger {l:?}");
+    assert!(l.truncated_w == 0.0, "{l:?}");
+    assert!(l.escaped_w < 1e-4, "{l:?}");
+    let (above, beam, below) = (surface(f, "above"), surface(f, "beam"), surface(f, "below"));
+    let r = (above.absorbed_w + beam.absorbed_w, above.absorbed_w_stderr.hypot(beam.absorbed_w_stderr));
+    (r, (below.absorbed_w, below.absorbed_w_stderr))
+}
+
+fn assert_near(what: &str, got: (f64, f64), want: f64) {
+    let z = (got.0 - want) / got.1;
+    println!("{what}: {:.5} ± {:.5} against {want} (z = {z:+.2})", got.0, got.1);
+    assert!(got.1 > 0.0 && z.abs() < 4.0, "{what}: {} ± {} against {want}: z = {z:.2}", got.0, got.1);
+}
+
+#[test]
+fn mcml_slab_matches_van_de_hulst() {
+    // μa = 10 cm⁻¹, μs = 90 cm⁻¹, g = 0.75, d = 0.02 cm, matched boundary (n = 1), normal
+    // collimated beam: diffuse reflectance 0.09739 and total transmittance 0.66096 (van de Hulst
+    // 1980, as tabulated by Wang, Jacques & Zheng 1995, "MCML — Monte Carlo modeling of light
+    // transport in multi-layered tissues", Comput. Methods Programs Biomed. 47, Table 2).
+    let toml =
+        slab("absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }", 0.02, 1.0, 2.0);
+    let f = common::run(&toml, 1_000_000, 1);
+    let (r, t) = reflectance_transmittance(&f);
+    assert_near("MCML slab R_d", r, 0.09739);
+    assert_near("MCML slab T_t", t, 0.66096);
+    // The rest is the medium's: its row, and its volume 4 × 4 × 0.02 cm³.
+    let m = &f.media[0];
+    assert_eq!(m.name, "tissue");
+    assert!((m.volume_m3 - 3.2e-7).abs() < 1e-12, "volume {}", m.volume_m3);
+    let rest = 1.0 - r.0 - t.0 - f.ledger.escaped_w;
+    assert!((m.absorbed_w - rest).abs() < 1e-9, "medium {} against 1 − R − T = {rest}", m.absorbed_w);
+    assert!(surface(&f, "slab").absorbed_w == 0.0, "an index-matched boundary absorbs nothing");
+}
+
+#[test]
+fn conservative_isotropic_slab_matches_van_de_hulst() {
+    // Optical depth 1, albedo 1, isotropic, matched boundaries, normal incidence: R = 0.34133,
+    // T = 0.65867 (van de Hulst 1980, "Multiple Light Scattering", Table 12; the MCML paper's
+    // Table 1 checks against the same).
+    let toml = slab("scattering_per_m = 5000\nphase = \"isotropic\"", 0.02, 1.0, 2.0);
+    let f = common::run(&toml, 1_000_000, 2);
+    let (r, t) = reflectance_transmittance(&f);
+    assert_near("isotropic slab R", r, 0.34133);
+    assert_near("isotropic slab T", t, 0.65867);
+    assert!(f.media[0].absorbed_w == 0.0, "albedo 1 absorbs nothing");
+}
+
+/// Chandrasekhar's H-function for isotropic scattering of albedo `a` at μ = 1, by iterating
+/// 1/H(μ) = √(1 − a) + (a/2) ∫₀¹ μ' H(μ')/(μ + μ') dμ' on 16 Gauss–Legendre panels of 8 nodes
+/// (Chandrasekhar 1960, "Radiative Transfer", ch. V, eq. 11 form), to 10⁻¹³.
+fn h_at_one(a: f64) -> f64 {
+    let nodes: Vec<(f64, f64)> = (0..16)
+        .flat_map(|p| {
+            photon::scene::GAUSS_LEGENDRE_8.iter().map(move |&(x, w)| ((p as f64 + 0.5 + 0.5 * x) / 16.0, w / 32.0))
+        })
+        .collect();
+    let integral =
+        |mu: f64, h: &[f64]| -> f64 { nodes.iter().zip(h).map(|(&(m, w), &hm)| w * m * hm / (mu + m)).sum::<f64>() };
+    let mut h = vec![1.0; nodes.len()];
+    for _ in 0..10_000 {
+        let next: Vec<f64> =
+            nodes.iter().map(|&(mu, _)| 1.0 / ((1.0 - a).sqrt() + 0.5 * a * integral(mu, &h))).collect();
+        let change = next.iter().zip(&h).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+        h = next;
+        if change < 1e-13 {
+            break;
+        }
+    }
+    // Its zeroth moment is known in closed form, ∫₀¹ H dμ = (2/a)(1 − √(1 − a)) (ch. V, eq. 21).
+    let moment: f64 = nodes.iter().zip(&h).map(|(&(_, w), &hm)| w * hm).sum();
+    let want = 2.0 / a * (1.0 - (1.0 - a).sqrt());
+    assert!((moment - want).abs() < 1e-9, "a = {a}: ∫H dμ = {moment}, closed form {want}");
+    1.0 / ((1.0 - a).sqrt() + 0.5 * a * integral(1.0, &h))
+}
+
+#[test]
+fn semi_infinite_isotropic_medium_reflects_one_minus_h_root_one_minus_albedo() {
+    // A half-space of isotropic scatterers of albedo a under a normal beam reflects
+    // 1 − H(1)√(1 − a) (Chandrasekhar 1960, ch. IX). Here 150 mean free paths deep (the diffuse
+    // light of a = 0.99 decays over 5.8 of them: e⁻²⁶ is left at the bottom) and 2000 wide.
+    // The H computed here is held to its zeroth moment's closed form (`h_at_one`).
+    for (k, a) in [0.5, 0.9, 0.99].into_iter().enumerate() {
+        // μt = 10 cm⁻¹ (one mean free path is 1 mm).
+        let medium = format!("absorption_per_m = {}\nscattering_per_m = {}", 1000.0 * (1.0 - a), 1000.0 * a);
+        let toml = slab(&medium, 15.0, 1.0, 100.0);
+        let photons = if a > 0.95 { 200_000 } else { 400_000 };
+        let f = common::run(&toml, photons, 10 + k as u64);
+        let (r, t) = reflectance_transmittance(&f);
+        assert!(t.0 < 1e-6, "a = {a}: {} transmitted through 150 mean free paths", t.0);
+        let want = 1.0 - h_at_one(a) * (1.0 - a).sqrt();
+        assert_near(&format!("semi-infinite a = {a}"), r, want);
+    }
+}
+
+#[test]
+fn semi_infinite_medium_under_a_refractive_boundary_matches_adding_doubling() {
+    // a = 0.8, g = 0, n = 1.4 in air, normal beam: total reflectance UR1 = 0.18095 including the
+    // specular reflection ((n − 1)/(n + 1))² = 0.0278 (Prahl's adding-doubling, iadpython's
+    // published test values).
+    let toml = slab("absorption_per_m = 200\nscattering_per_m = 800", 15.0, 1.4, 100.0);
+    let f = common::run(&toml, 400_000, 20);
+    let (r, _) = reflectance_transmittance(&f);
+    assert_near("semi-infinite a = 0.8 under n = 1.4", r, 0.18095);
+}
+
+#[test]
+fn a_purely_absorbing_medium_is_beer_lambert_and_books_to_its_row() {
+    // μa = 50 m⁻¹ through 2 cm, matched boundary: T = e⁻¹, and the medium row holds 1 − e⁻¹. The
+    // expected-value estimator weights every photon by exp(−μa t) alike: T is exact to the f32
+    // path length (10⁻⁵); the analog one lets a photon through with that probability (|z| < 4).
+    let toml = slab("absorption_per_m = 50", 2.0, 1.0, 5.0);
+    let f = common::run(&toml, 200_000, 3);
+    let (r, t) = reflectance_transmittance(&f);
+    assert!(r.0 == 0.0, "reflectance {r:?}");
+    assert!((t.0 / (-1.0f64).exp() - 1.0).abs() < 1e-5, "T = {t:?}");
+    let analog = common::run_with(&toml, 200_000, 3, common::ANALOG);
+    assert_near("absorbing medium T, analog", reflectance_transmittance(&analog).1, (-1.0f64).exp());
+    assert!((f.media[0].absorbed_w - (1.0 - t.0)).abs() < 1e-12, "{:?}", f.media[0]);
+}
+
+#[test]
+fn only_a_scattering_medium_draws_free_flights_and_samples_a_phase_function() {
+    use photon::run::{apply_options, simulate, RunOptions};
+    let counters = |medium: &str| {
+        let mut s = common::scene(&slab(medium, 0.02, 1.0, 2.0));
+        let opts = RunOptions { photons: Some(10_000), seed: Some(4), threads: Some(1), ..Default::default() };
+        let chosen = apply_options(&mut s, &opts).unwrap();
+        let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+        (s.effects, r.tallies.counters)
+    };
+    let (fx, c) = counters("absorption_per_m = 1000\nscattering_per_m = 9000");
+    assert!(fx.volume_scattering && fx.absorbing_media);
+    assert!(c.free_flights > 10_000 && c.phase_samples > 10_000, "{c:?}");
+    let (fx, c) = counters("absorption_per_m = 1000");
+    assert!(!fx.volume_scattering && fx.absorbing_media);
+    assert!(c.free_flights == 0 && c.phase_samples == 0, "{c:?}");
+}
