@@ -120,7 +120,7 @@ pub fn run_all(
         interrupt,
     };
     type Group = fn(&Ctx, &mut Vec<CaseResult>) -> Result<(), Error>;
-    let groups: [Group; 9] = [
+    let groups: [Group; 10] = [
         view_factors,
         inverse_square,
         furnaces,
@@ -129,6 +129,7 @@ pub fn run_all(
         mirrors,
         dielectrics,
         dispersion,
+        media,
         |ctx, out| {
             lecture_integral(ctx, out);
             Ok(())
@@ -656,6 +657,76 @@ fn dispersion(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error> {
 /// variance per sample) each. Stratified variants use N strata of u, one sample each; their
 /// variance is estimated from pairs of neighbouring strata (each pair's difference of f/p
 /// values estimates the within-stratum variance, slightly conservatively).
+// ── 9. Scattering media ────────────────────────────────────────────────────────────────────
+
+/// (absorbed, stderr) of the named surfaces together (independent rows of one run: the
+/// variances add, a slight overestimate since they are anticorrelated).
+fn absorbed_by(scene: &Scene, r: &RunResult, names: &[&str]) -> (f64, f64) {
+    names.iter().fold((0.0, 0.0), |(m, v), name| {
+        let i = scene.surfaces.iter().position(|s| s.name == *name).expect("case names its surfaces");
+        let (a, se) = r.absorbed(i);
+        (m + a, (v * v + se * se).sqrt())
+    })
+}
+
+fn media(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error> {
+    // A slab of medium (cm), wide enough that nothing reaches its sides, under a normal
+    // collimated beam; absorbing planes above and below catch what leaves (the beam's source
+    // quad catches the specular reflection, which goes straight back).
+    let slab = |medium: &str, d: f64, n: f64, half: f64| -> String {
+        format!(
+            "[scene]\nunit = \"cm\"\n[simulation]\nmax_bounces = 1000000\n[media.m]\n{medium}\n\
+             [materials.slab]\ntype = \"dielectric\"\nior = {n}\nmedium = \"m\"\n\
+             [[surfaces]]\nname = \"slab\"\nmaterial = \"slab\"\nshape = {{ type = \"box\", min = [-{half}, -{half}, -{d}], max = [{half}, {half}, 0] }}\n\
+             [[surfaces]]\nname = \"above\"\nmaterial = \"absorber\"\nshape = {{ type = \"quad\", corners = [[-1e5, -1e5, 1], [1e5, -1e5, 1], [1e5, 1e5, 1], [-1e5, 1e5, 1]] }}\n\
+             [[surfaces]]\nname = \"below\"\nmaterial = \"absorber\"\nshape = {{ type = \"quad\", corners = [[-1e5, -1e5, -{b}], [1e5, -1e5, -{b}], [1e5, 1e5, -{b}], [-1e5, 1e5, -{b}]] }}\n\
+             [[lights]]\nname = \"beam\"\nshape = {{ type = \"quad\", corners = [[-0.001, -0.001, 0.1], [-0.001, 0.001, 0.1], [0.001, 0.001, 0.1], [0.001, -0.001, 0.1]] }}\n\
+             distribution = \"collimated\"\npower_w = 1\n",
+            b = d + 1.0
+        )
+    };
+    // van de Hulst (1980) as tabulated in the MCML paper (Wang, Jacques & Zheng 1995).
+    let toml =
+        slab("absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }", 0.02, 1.0, 2.0);
+    let (s, r) = ctx.run(&toml, 20_000)?;
+    let note = "van de Hulst; MCML";
+    out.push(case(
+        "medium: MCML slab, reflectance R_d",
+        absorbed_by(&s, &r, &["above", "beam"]),
+        0.09739,
+        0.004 * ctx.loose,
+        note,
+    ));
+    out.push(case(
+        "medium: MCML slab, transmittance T_t",
+        absorbed_by(&s, &r, &["below"]),
+        0.66096,
+        0.001 * ctx.loose,
+        note,
+    ));
+    // Optical depth 1, albedo 1, isotropic (van de Hulst 1980).
+    let toml = slab("scattering_per_m = 5000", 0.02, 1.0, 2.0);
+    let (s, r) = ctx.run(&toml, 20_000)?;
+    out.push(case(
+        "medium: isotropic slab tau 1 a 1, R",
+        absorbed_by(&s, &r, &["above", "beam"]),
+        0.34133,
+        0.002 * ctx.loose,
+        "van de Hulst",
+    ));
+    // A half-space of albedo 0.8 under an n = 1.4 boundary (Prahl's adding-doubling, iadpython).
+    let toml = slab("absorption_per_m = 200\nscattering_per_m = 800", 15.0, 1.4, 100.0);
+    let (s, r) = ctx.run(&toml, 20_000)?;
+    out.push(case(
+        "medium: half-space a 0.8 under n 1.4, R",
+        absorbed_by(&s, &r, &["above", "beam"]),
+        0.18095,
+        0.005 * ctx.loose,
+        "adding-doubling",
+    ));
+    Ok(())
+}
+
 pub fn lecture_estimators(n: usize, seed: u64) -> [(f64, f64, f64); 4] {
     let mut s = crate::sampling::Sampler::for_batch(seed, 0);
     let f = |x: f64| x * x - x * x * x;
