@@ -1000,7 +1000,7 @@ fn tally_of_an_unknown_surface() {
     expect_bad_args(
         "tally",
         &["--photons", "1000", "--rel-error", "0.1", "--tally", "ceiling"],
-        &["--tally ceiling: no surface of that name; surfaces: floor, lamp"],
+        &["--tally ceiling: no surface or medium of that name; surfaces: floor, lamp"],
     );
 }
 
@@ -1375,4 +1375,19 @@ fn bad_media() {
         let line = line_of(&toml, needle);
         expect_bad(name, &toml, &[], &[&at(line, key), message]);
     }
+}
+
+#[test]
+fn camera_integrators_refuse_media_for_now() {
+    // A dielectric filled with a medium, a camera, and the path tracer or BDPT chosen in the
+    // file or on the command line: exit 2 naming where the choice was made and the medium.
+    let scene = format!(
+        "[media.fog]\nscattering_per_m = 10\n\n[materials.glass]\ntype = \"dielectric\"\nmedium = \"fog\"\n\n\
+         [[surfaces]]\nname = \"cube\"\nmaterial = \"glass\"\nshape = {{ type = \"box\", min = [0.2, 0.2, 0.2], max = [0.4, 0.4, 0.4] }}\n\n\
+         [camera]\nposition = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\nfov_deg = 40\nresolution = [8, 8]\n\n{BASE}"
+    );
+    let in_file = scene.replace("[camera]", "[simulation]\nintegrator = \"bdpt\"\n\n[camera]");
+    expect_bad("media-bdpt", &in_file, &[], &["simulation.integrator = bdpt", "medium \"fog\"", "--integrator light"]);
+    let args: Vec<&str> = RUN.iter().copied().chain(["--integrator", "path"]).collect();
+    expect_exit2("media-path", Some(&scene), &[], &args, &["--integrator = path", "medium \"fog\""]);
 }

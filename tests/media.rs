@@ -104,8 +104,8 @@ fn mcml_slab_matches_van_de_hulst() {
 #[test]
 fn conservative_isotropic_slab_matches_van_de_hulst() {
     // Optical depth 1, albedo 1, isotropic, matched boundaries, normal incidence: R = 0.34133,
-    // T = 0.65867 (van de Hulst 1980, "Multiple Light Scattering", Table 12; the MCML paper's
-    // Table 1 checks against the same).
+    // T = 0.65867 (van de Hulst 1980, "Multiple Light Scattering"; Prahl's adding-doubling,
+    // iadpython 0.6 with 16 quadrature points, gives UR1 = 0.341329, UT1 = 0.658671).
     let toml = slab("scattering_per_m = 5000\nphase = \"isotropic\"", 0.02, 1.0, 2.0);
     let f = common::run(&toml, 1_000_000, 2);
     let (r, t) = reflectance_transmittance(&f);
@@ -164,8 +164,8 @@ fn semi_infinite_isotropic_medium_reflects_one_minus_h_root_one_minus_albedo() {
 #[test]
 fn semi_infinite_medium_under_a_refractive_boundary_matches_adding_doubling() {
     // a = 0.8, g = 0, n = 1.4 in air, normal beam: total reflectance UR1 = 0.18095 including the
-    // specular reflection ((n − 1)/(n + 1))² = 0.0278 (Prahl's adding-doubling, iadpython's
-    // published test values).
+    // specular reflection ((n − 1)/(n + 1))² = 0.0278 (Prahl's adding-doubling: iadpython's
+    // test_06_scattering, a = 0.8, b = 10⁵, g = 0, to its tolerance of 10⁻⁴).
     let toml = slab("absorption_per_m = 200\nscattering_per_m = 800", 15.0, 1.4, 100.0);
     let f = common::run(&toml, 400_000, 20);
     let (r, _) = reflectance_transmittance(&f);
@@ -203,4 +203,87 @@ fn only_a_scattering_medium_draws_free_flights_and_samples_a_phase_function() {
     let (fx, c) = counters("absorption_per_m = 1000");
     assert!(!fx.volume_scattering && fx.absorbing_media);
     assert!(c.free_flights == 0 && c.phase_samples == 0, "{c:?}");
+}
+
+#[test]
+fn a_medium_whose_scattering_varies_with_wavelength_scatters_each_photon_at_its_own() {
+    // μs steps from 50 to 150 cm⁻¹ at 550 nm (optical depth 1 and 3 in the 0.2 mm slab), albedo
+    // 1, isotropic, under a beam of flat spectrum over 400–700 nm. Each photon flies at its own
+    // wavelength's μt, so the reflected power per wavelength bin is half the beam's power times
+    // that depth's reflectance: 0.34133 below 550 nm (as above) and 0.62245 above it (Prahl's
+    // adding-doubling, iadpython 0.6: a = 1, b = 3, g = 0, n = 1, 16 quadrature points). Both
+    // estimators. The 2 pm ramp of the step carries 10⁻⁵ of the power.
+    let spectral = slab(
+        "scattering_per_m = { table = [[400, 5000], [549.999, 5000], [550.001, 15000], [700, 15000]] }",
+        0.02,
+        1.0,
+        2.0,
+    )
+    .replace("max_bounces = 1000000", "max_bounces = 1000000\nwavelength_range_nm = [400, 700]")
+    .replace(
+        "name = \"above\"\nmaterial = \"absorber\"",
+        "name = \"above\"\nmaterial = \"absorber\"\nspectrum_bins = 2",
+    );
+    assert!(spectral.contains("spectrum_bins = 2") && spectral.contains("[400, 700]"));
+    use photon::run::{apply_options, simulate, RunOptions};
+    for (k, transport) in [common::EXPECTED, common::ANALOG].into_iter().enumerate() {
+        let mut s = common::scene(&spectral);
+        assert!(s.effects.spectral && s.effects.volume_scattering);
+        let opts = RunOptions {
+            photons: Some(800_000),
+            seed: Some(32 + k as u64),
+            threads: Some(2),
+            transport,
+            ..Default::default()
+        };
+        let chosen = apply_options(&mut s, &opts).unwrap();
+        let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+        assert!(!r.hero, "no hero wavelengths in a scattering medium");
+        let bin = |b: usize| r.tallies.estimate(&r.tallies.spectra, b, r.emitted_w, r.transport.error_model());
+        let (thin, thin_se) = bin(0);
+        assert_near(
+            &format!("{:?}: reflectance below 550 nm", transport.estimator),
+            (2.0 * thin, 2.0 * thin_se),
+            0.34133,
+        );
+        let (thick, thick_se) = bin(1);
+        assert_near(
+            &format!("{:?}: reflectance above 550 nm", transport.estimator),
+            (2.0 * thick, 2.0 * thick_se),
+            0.62245,
+        );
+    }
+}
+
+#[test]
+fn a_slab_far_from_the_scene_centre_keeps_its_photons_inside() {
+    // The MCML slab with a marker 10 m above it moves the scene's centre 5 m away, where an f32
+    // collision point has 0.5 µm steps, a two-hundredth of a mean free path: a point rounded past
+    // the face must not leave the photon colliding in air (it would read low R and T, and trace
+    // up to max_bounces rays). Same references as `mcml_slab_matches_van_de_hulst`.
+    let toml = slab(
+        "absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }",
+        0.02,
+        1.0,
+        2.0,
+    ) + "\n[[surfaces]]\nname = \"marker\"\nmaterial = \"absorber\"\nshape = { type = \"quad\", corners = [[0, 0, 1000], [0.1, 0, 1000], [0.1, 0.1, 1000], [0, 0.1, 1000]] }\n";
+    let mut s = common::scene(&toml);
+    assert!(s.origin_m.z > 4.9, "the scene's centre is {} m up", s.origin_m.z);
+    use photon::run::{apply_options, simulate, RunOptions};
+    let opts = RunOptions {
+        photons: Some(1_000_000),
+        seed: Some(5),
+        threads: Some(2),
+        transport: common::EXPECTED,
+        ..Default::default()
+    };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    let f = photon::output::flux(&s, &r);
+    let (r_d, t_t) = reflectance_transmittance(&f);
+    assert_near("off-centre MCML slab R_d", r_d, 0.09739);
+    assert_near("off-centre MCML slab T_t", t_t, 0.66096);
+    // The centred slab traces about 9 rays per photon (collisions and crossings).
+    let rays = r.tallies.counters.rays as f64 / 1e6;
+    assert!(rays < 20.0, "{rays} rays per photon");
 }

@@ -327,8 +327,9 @@ impl<'a, const N: usize> AbgSurface<'a, N> {
 
     /// Solid-angle density of `sample`'s scattered directions in `mode`: the lobe choice times
     /// the offset's density per d²β times |cosθ_i|. About a specular direction that is
-    /// R·TIS · A·shape/(A·M): the M's cancel. A camera path's refraction is drawn in the light's
-    /// variables (`sample_refraction_of_light`): there it is q · shape(|Δ|²)/(πW(4)) · (η_t/η_o)².
+    /// R·TIS · A·shape/(A·M)·|cosθ_i|: the M's cancel. A camera path's refraction is drawn in the
+    /// light's variables (`sample_refraction_of_light`): there it is
+    /// (1 − p_reflect)·q · shape(|Δ|²)/(πW(4)) · (η_t/η_o)² · |cosθ_i|.
     #[inline]
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A, n: Vec3A, mode: Mode) -> f64 {
         let (_, l) = self.local(wo, wi, n);

@@ -275,7 +275,11 @@ impl Tallies {
         (mean, var.sqrt() * scale)
     }
 
+    /// A medium's row (past the surfaces) has no incident power: (0, 0).
     pub fn incident_estimate(&self, surface: usize, scale: f64, model: ErrorModel) -> (f64, f64) {
+        if surface >= self.incident.moments.len() {
+            return (0.0, 0.0);
+        }
         self.estimate(&self.incident, surface, scale, model)
     }
 
@@ -298,8 +302,8 @@ impl Tallies {
         }
     }
 
-    /// Largest relative standard error over the chosen surfaces' non-zero estimates
-    /// (incident and absorbed); None when none is non-zero yet.
+    /// Largest relative standard error over the chosen surfaces' (and media's) non-zero
+    /// estimates (incident and absorbed); None when none is non-zero yet.
     pub fn worst_rel_error(&self, surfaces: &[usize], model: ErrorModel) -> Option<f64> {
         let mut worst: Option<f64> = None;
         for &s in surfaces {

@@ -111,9 +111,11 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     let integrator = scene.simulation.integrator;
     if integrator != crate::scene::Integrator::Light && scene.camera.is_some() && scene.effects.camera {
         if let Some(m) = scene.surface_medium.iter().flatten().next() {
+            let chosen_by = if opts.integrator.is_some() { "--integrator" } else { "simulation.integrator" };
             return Err(Error::Usage(format!(
-                "{}: the {} integrator does not trace participating media yet, and the scene fills a dielectric \
-                 with medium \"{}\": image it with the light tracer (--integrator light), or use --no-image",
+                "{}: {chosen_by} = {}: that integrator does not trace participating media yet, and the scene \
+                 fills a dielectric with medium \"{}\": use --integrator light (whose image does not show the \
+                 light scattered inside media either), or --no-image",
                 scene.path.display(),
                 integrator.name(),
                 scene.media[*m as usize].name
@@ -137,13 +139,18 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
         return Err(Error::Usage(format!("--threads must be between 1 and {MAX_THREADS}")));
     }
     let mut chosen = Vec::new();
+    // Surfaces, then media (their absorbed rows follow the surfaces').
+    let n_surfaces = scene.surfaces.len();
     for name in &opts.tallies {
-        match scene.surfaces.iter().position(|s| &s.name == name) {
+        let medium = || scene.media.iter().position(|m| &m.name == name).map(|k| n_surfaces + k);
+        match scene.surfaces.iter().position(|s| &s.name == name).or_else(medium) {
             Some(i) => chosen.push(i),
             None => {
                 let known: Vec<&str> = scene.surfaces.iter().map(|s| s.name.as_str()).collect();
+                let media: Vec<&str> = scene.media.iter().map(|m| m.name.as_str()).collect();
+                let media = if media.is_empty() { String::new() } else { format!("; media: {}", media.join(", ")) };
                 return Err(Error::Usage(format!(
-                    "--tally {name}: no surface of that name; surfaces: {}",
+                    "--tally {name}: no surface or medium of that name; surfaces: {}{media}",
                     known.join(", ")
                 )));
             }
@@ -153,7 +160,7 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
         return Err(Error::Usage("--tally only makes sense with --rel-error".into()));
     }
     if chosen.is_empty() {
-        chosen = (0..scene.surfaces.len()).collect();
+        chosen = (0..n_surfaces + scene.media.len()).collect();
     }
     Ok(chosen)
 }

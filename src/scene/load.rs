@@ -231,6 +231,13 @@ impl<'s> Loader<'s> {
             effects.volume_scattering |= positive(&m.scattering_per_m);
             effects.spectral |= varies(&m.absorption_per_m) || varies(&m.scattering_per_m);
         }
+        if effects.volume_scattering && camera.is_some() {
+            warnings.push(
+                "the light-traced image does not show the light scattered inside media yet (a medium vertex is not \
+                 splatted to the camera); flux, maps and far fields include it"
+                    .to_string(),
+            );
+        }
         let detectors = self.detectors(root, origin_m)?;
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
