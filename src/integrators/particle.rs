@@ -273,6 +273,9 @@ impl Kernel<'_> {
             // that stretch is medium too (at 50 m from the scene's centre it is 20 µm, a fifth of
             // a tissue mean free path). Zero from a free point (emission, a volume collision).
             let mut head_start = 0.0f64;
+            // μs and μa of the medium the photon is in, at its wavelength (fixed for the photon):
+            // looked up when it enters a medium, not at every collision.
+            let mut coefficients: Option<(u32, f64, f64)> = None;
             let mut dir = birth.dir;
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
@@ -292,8 +295,14 @@ impl Kernel<'_> {
                 let mut absorbing = None;
                 if let Some(v) = volume {
                     let med = &scene.media[v as usize];
-                    let mu_s = med.scattering_per_m.eval(lambda);
-                    let mu_a = med.absorption_per_m.eval(lambda);
+                    let (mu_s, mu_a) = match coefficients {
+                        Some((w, mu_s, mu_a)) if w == v => (mu_s, mu_a),
+                        _ => {
+                            let (mu_s, mu_a) = (med.scattering_per_m.eval(lambda), med.absorption_per_m.eval(lambda));
+                            coefficients = Some((v, mu_s, mu_a));
+                            (mu_s, mu_a)
+                        }
+                    };
                     if mu_s > 0.0 {
                         out.counters.free_flights += 1;
                         let mu_t = mu_a + mu_s;
