@@ -80,14 +80,33 @@ fn assert_near(what: &str, got: (f64, f64), want: f64) {
     assert!(got.1 > 0.0 && z.abs() < 4.0, "{what}: {} ± {} against {want}: z = {z:.2}", got.0, got.1);
 }
 
+/// The MCML test slab's tissue: μa = 10 cm⁻¹, μs = 90 cm⁻¹, g = 0.75.
+const MCML_TISSUE: &str = "absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }";
+
+/// `toml` run through the library with `photons`, `seed` and `transport` on 2 threads: the scene
+/// and the whole result (counters, spectra, hero), where `common::run`'s flux table is not enough.
+fn simulate(
+    toml: &str,
+    photons: u64,
+    seed: u64,
+    transport: photon::integrators::particle::TransportOptions,
+) -> (photon::scene::Scene, photon::run::RunResult) {
+    use photon::run::{apply_options, RunOptions};
+    let mut s = common::scene(toml);
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = photon::run::simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    (s, r)
+}
+
 #[test]
 fn mcml_slab_matches_van_de_hulst() {
     // μa = 10 cm⁻¹, μs = 90 cm⁻¹, g = 0.75, d = 0.02 cm, matched boundary (n = 1), normal
     // collimated beam: diffuse reflectance 0.09739 and total transmittance 0.66096 (van de Hulst
     // 1980, as tabulated by Wang, Jacques & Zheng 1995, "MCML — Monte Carlo modeling of light
     // transport in multi-layered tissues", Comput. Methods Programs Biomed. 47, Table 2).
-    let toml =
-        slab("absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }", 0.02, 1.0, 2.0);
+    let toml = slab(MCML_TISSUE, 0.02, 1.0, 2.0);
     let f = common::run(&toml, 1_000_000, 1);
     let (r, t) = reflectance_transmittance(&f);
     assert_near("MCML slab R_d", r, 0.09739);
@@ -189,12 +208,8 @@ fn a_purely_absorbing_medium_is_beer_lambert_and_books_to_its_row() {
 
 #[test]
 fn only_a_scattering_medium_draws_free_flights_and_samples_a_phase_function() {
-    use photon::run::{apply_options, simulate, RunOptions};
     let counters = |medium: &str| {
-        let mut s = common::scene(&slab(medium, 0.02, 1.0, 2.0));
-        let opts = RunOptions { photons: Some(10_000), seed: Some(4), threads: Some(1), ..Default::default() };
-        let chosen = apply_options(&mut s, &opts).unwrap();
-        let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+        let (s, r) = simulate(&slab(medium, 0.02, 1.0, 2.0), 10_000, 4, common::EXPECTED);
         (s.effects, r.tallies.counters)
     };
     let (fx, c) = counters("absorption_per_m = 1000\nscattering_per_m = 9000");
@@ -225,19 +240,9 @@ fn a_medium_whose_scattering_varies_with_wavelength_scatters_each_photon_at_its_
         "name = \"above\"\nmaterial = \"absorber\"\nspectrum_bins = 2",
     );
     assert!(spectral.contains("spectrum_bins = 2") && spectral.contains("[400, 700]"));
-    use photon::run::{apply_options, simulate, RunOptions};
     for (k, transport) in [common::EXPECTED, common::ANALOG].into_iter().enumerate() {
-        let mut s = common::scene(&spectral);
+        let (s, r) = simulate(&spectral, 800_000, 32 + k as u64, transport);
         assert!(s.effects.spectral && s.effects.volume_scattering);
-        let opts = RunOptions {
-            photons: Some(800_000),
-            seed: Some(32 + k as u64),
-            threads: Some(2),
-            transport,
-            ..Default::default()
-        };
-        let chosen = apply_options(&mut s, &opts).unwrap();
-        let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
         assert!(!r.hero, "no hero wavelengths in a scattering medium");
         let bin = |b: usize| r.tallies.estimate(&r.tallies.spectra, b, r.emitted_w, r.transport.error_model());
         let (thin, thin_se) = bin(0);
@@ -261,24 +266,9 @@ fn a_slab_far_from_the_scene_centre_keeps_its_photons_inside() {
     // collision point has 0.5 µm steps, a two-hundredth of a mean free path: a point rounded past
     // the face must not leave the photon colliding in air (it would read low R and T, and trace
     // up to max_bounces rays). Same references as `mcml_slab_matches_van_de_hulst`.
-    let toml = slab(
-        "absorption_per_m = 1000\nscattering_per_m = 9000\nphase = { henyey_greenstein = 0.75 }",
-        0.02,
-        1.0,
-        2.0,
-    ) + "\n[[surfaces]]\nname = \"marker\"\nmaterial = \"absorber\"\nshape = { type = \"quad\", corners = [[0, 0, 1000], [0.1, 0, 1000], [0.1, 0.1, 1000], [0, 0.1, 1000]] }\n";
-    let mut s = common::scene(&toml);
+    let toml = slab(MCML_TISSUE, 0.02, 1.0, 2.0) + "\n[[surfaces]]\nname = \"marker\"\nmaterial = \"absorber\"\nshape = { type = \"quad\", corners = [[0, 0, 1000], [0.1, 0, 1000], [0.1, 0.1, 1000], [0, 0.1, 1000]] }\n";
+    let (s, r) = simulate(&toml, 1_000_000, 5, common::EXPECTED);
     assert!(s.origin_m.z > 4.9, "the scene's centre is {} m up", s.origin_m.z);
-    use photon::run::{apply_options, simulate, RunOptions};
-    let opts = RunOptions {
-        photons: Some(1_000_000),
-        seed: Some(5),
-        threads: Some(2),
-        transport: common::EXPECTED,
-        ..Default::default()
-    };
-    let chosen = apply_options(&mut s, &opts).unwrap();
-    let r = simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
     let f = photon::output::flux(&s, &r);
     let (r_d, t_t) = reflectance_transmittance(&f);
     assert_near("off-centre MCML slab R_d", r_d, 0.09739);
