@@ -387,6 +387,14 @@ fn describe(scene: &Scene) -> String {
                 range(&m.scattering_per_m),
                 m.volume_m3
             ));
+            if let Some(f) = &m.fluorescence {
+                s.push_str(&format!(
+                    "    luminophore μf {} /m, quantum yield {}, emission peak {} nm\n",
+                    range(&f.absorption_per_m),
+                    f.quantum_yield,
+                    peak_nm(&f.emission, (lo, hi))
+                ));
+            }
         }
     }
     s.push_str(&format!("triangles: {}\n", scene.geometry.len()));
@@ -416,4 +424,19 @@ fn describe(scene: &Scene) -> String {
 /// recentring (1.2999999999999998 -> 1.3).
 fn round_shown(x: f64) -> f64 {
     format!("{x:.11e}").parse().unwrap_or(x)
+}
+
+/// Where a spectrum peaks inside `range` (nm), among its breakpoints.
+fn peak_nm(s: &photon::spectrum::Spectrum, range: (f64, f64)) -> f64 {
+    s.breakpoints(range)
+        .into_iter()
+        .fold((range.0, f64::NEG_INFINITY), |best, x| {
+            let v = s.eval(x);
+            if v > best.1 {
+                (x, v)
+            } else {
+                best
+            }
+        })
+        .0
 }

@@ -1288,7 +1288,7 @@ fn bad_media() {
     // text, the key path, the message.
     let fog = "[media.fog]\nabsorption_per_m = 1\nscattering_per_m = 10\n";
     let glass = "type = \"dielectric\"\nmedium = \"fog\"";
-    let cases: [(&str, &str, &str, &str, &str, &str); 10] = [
+    let cases: [(&str, &str, &str, &str, &str, &str); 13] = [
         (
             "medium-unknown",
             "type = \"dielectric\"\nmedium = \"smoke\"",
@@ -1346,12 +1346,36 @@ fn bad_media() {
             "must not be negative, found -10",
         ),
         (
-            "medium-fluorescence",
+            "fluorescence-missing",
             glass,
             "[media.fog]\nscattering_per_m = 10\nfluorescence = { quantum_yield = 0.9 }\n",
             "fluorescence",
-            "media.fog.fluorescence",
-            "fluorescence is not supported yet",
+            "media.fog.fluorescence.absorption_per_m",
+            "missing required key `absorption_per_m`",
+        ),
+        (
+            "fluorescence-yield",
+            glass,
+            "[media.fog]\nfluorescence = { absorption_per_m = 5, emission = 1, quantum_yield = 1.5 }\n",
+            "fluorescence",
+            "media.fog.fluorescence.quantum_yield",
+            "must lie in [0, 1], found 1.5",
+        ),
+        (
+            "fluorescence-dark",
+            glass,
+            "[media.fog]\nfluorescence = { absorption_per_m = 5, emission = { table = [[900, 1], [950, 1]] }, quantum_yield = 1 }\n",
+            "fluorescence",
+            "media.fog.fluorescence.emission",
+            "no power inside the simulated wavelengths 360–830 nm",
+        ),
+        (
+            "fluorescence-key",
+            glass,
+            "[media.fog]\nfluorescence = { absorption_per_m = 5, emission = 1, yield = 1 }\n",
+            "fluorescence",
+            "media.fog.fluorescence.yield",
+            "unknown key `yield`",
         ),
         (
             "medium-key",
@@ -1390,4 +1414,18 @@ fn camera_integrators_refuse_media_for_now() {
     expect_bad("media-bdpt", &in_file, &[], &["simulation.integrator = bdpt", "medium \"fog\"", "--integrator light"]);
     let args: Vec<&str> = RUN.iter().copied().chain(["--integrator", "path"]).collect();
     expect_exit2("media-path", Some(&scene), &[], &args, &["--integrator = path", "medium \"fog\""]);
+}
+
+#[test]
+fn a_point_light_has_no_spectrum_to_tally() {
+    let toml = format!(
+        "{BASE}\n[[lights]]\nname = \"p\"\nshape = {{ type = \"point\", position = [0.5, 0.5, 0.5] }}\nspectrum_bins = 4\n"
+    );
+    let line = line_of(&toml, "spectrum_bins");
+    expect_bad(
+        "point-light-spectrum-bins",
+        &toml,
+        &[],
+        &[&at(line, "lights[1].spectrum_bins"), "a point light is not a surface"],
+    );
 }

@@ -18,6 +18,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("luminaire", "grey", ""),
         ("reflector", "spectral", "spectral, specular_reflection, glossy_reflection"),
         ("tissue_slab", "grey", "specular_reflection, refraction, absorbing_media, volume_scattering"),
+        ("lsc_plate", "spectral", "spectral, specular_reflection, refraction, absorbing_media, fluorescence"),
         (
             "glass",
             "spectral",

@@ -669,6 +669,7 @@ const TOML_TABLES: &[&str] = &[
     "[materials.g2]\ntype = \"dielectric\"\nior = 1e300\nabsorption_per_m = 1e300\n\n[[surfaces]]\nname = \"g2s\"\nmaterial = \"g2\"\nshape = { type = \"box\", min = [0.2, 0.2, 0.2], max = [0.8, 0.8, 0.8] }\n",
     "[media.fog]\nabsorption_per_m = 1e-300\nscattering_per_m = 3\nphase = { henyey_greenstein = -0.999999 }\n\n[materials.f2]\ntype = \"dielectric\"\nior = 1.33\nmedium = \"fog\"\n\n[[surfaces]]\nname = \"f2s\"\nmaterial = \"f2\"\nshape = { type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.3, subdivisions = 2 }\n",
     "[media.ink]\nabsorption_per_m = 1e300\nscattering_per_m = { table = [[1, 0], [100000, 50]] }\n\n[materials.f3]\ntype = \"dielectric\"\nior = 1\noutside_ior = 1\nmedium = \"ink\"\n\n[[surfaces]]\nname = \"f3s\"\nmaterial = \"f3\"\nshape = { type = \"box\", min = [0.1, 0.1, 0.1], max = [0.4, 0.4, 0.4] }\n",
+    "[media.dye]\nscattering_per_m = 1e-300\nfluorescence = { absorption_per_m = { table = [[1, 1e300], [600, 0]] }, emission = { table = [[599, 0], [600, 1e300], [601, 0]] }, quantum_yield = 1 }\n\n[materials.f4]\ntype = \"dielectric\"\nior = 1.5\nmedium = \"dye\"\n\n[[surfaces]]\nname = \"f4s\"\nmaterial = \"f4\"\nshape = { type = \"box\", min = [0.6, 0.6, 0.6], max = [0.9, 0.9, 0.9] }\n",
     "[[surfaces]]\nname = \"tiny\"\nmaterial = \"absorber\"\nshape = { type = \"quad\", corners = [[0, 0, 0], [1e-12, 0, 0], [1e-12, 1e-12, 0], [0, 1e-12, 0]] }\nmap = { resolution = [2, 2] }\n",
 ];
 

@@ -40,11 +40,32 @@ impl Moments {
 pub struct HistoryScores {
     value: Vec<f64>,
     touched: Vec<u32>,
+    /// Where a history's wavelength can change (fluorescence), each score times the luminous
+    /// efficacy when it was added (`set_efficacy`); empty otherwise, and the history's one
+    /// efficacy is applied at `flush_scaled`.
+    luminous: Vec<f64>,
+    efficacy: f64,
 }
 
 impl HistoryScores {
     pub fn new(surfaces: usize) -> Self {
-        HistoryScores { value: vec![0.0; surfaces], touched: Vec::with_capacity(64) }
+        HistoryScores {
+            value: vec![0.0; surfaces],
+            touched: Vec::with_capacity(64),
+            luminous: Vec::new(),
+            efficacy: 0.0,
+        }
+    }
+
+    /// As `new`, also keeping each score's lumens at the efficacy current when it was added.
+    pub fn with_luminous(surfaces: usize) -> Self {
+        HistoryScores { luminous: vec![0.0; surfaces], ..HistoryScores::new(surfaces) }
+    }
+
+    /// The luminous efficacy (lm/W) of the scores added from now on (`with_luminous` only).
+    #[inline]
+    pub fn set_efficacy(&mut self, lm_per_w: f64) {
+        self.efficacy = lm_per_w;
     }
 
     #[inline]
@@ -54,6 +75,9 @@ impl HistoryScores {
             self.touched.push(surface);
         }
         *v += x;
+        if !self.luminous.is_empty() {
+            self.luminous[surface as usize] += x * self.efficacy;
+        }
     }
 
     /// Ends the history: each touched surface's score goes into `into`, and the buffer is cleared.
@@ -62,15 +86,23 @@ impl HistoryScores {
         self.flush_scaled(into, None);
     }
 
-    /// As `flush`, also adding score × `lm_per_w` to `luminous` (a history's luminous efficacy is
-    /// fixed: one wavelength, or one light's spectrum in grey transport).
+    /// As `flush`, also adding the history's lumens to `luminous`: score × `lm_per_w` (a history's
+    /// luminous efficacy is fixed: one wavelength, or one light's spectrum in grey transport), or
+    /// with `with_luminous` the lumens kept score by score.
     #[inline]
     pub fn flush_scaled(&mut self, into: &mut [Moments], mut luminous: Option<(&mut [Moments], f64)>) {
         for &s in &self.touched {
             let v = &mut self.value[s as usize];
             into[s as usize].add_history(*v);
             if let Some((lum, k)) = luminous.as_mut() {
-                lum[s as usize].add_history(*v * *k);
+                if self.luminous.is_empty() {
+                    lum[s as usize].add_history(*v * *k);
+                } else {
+                    lum[s as usize].add_history(self.luminous[s as usize]);
+                }
+            }
+            if !self.luminous.is_empty() {
+                self.luminous[s as usize] = 0.0;
             }
             *v = 0.0;
         }
@@ -132,6 +164,8 @@ pub struct Tallies {
     /// Incident and absorbed weight per wavelength bin of the surfaces that ask for a spectrum.
     pub spectra: Channel,
     pub spectra_absorbed: Channel,
+    /// Weight re-emitted by each medium's luminophore (a row per medium; empty without media).
+    pub reemitted: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -169,6 +203,9 @@ pub struct Counters {
     /// (none in a scene without scattering media).
     pub free_flights: u64,
     pub phase_samples: u64,
+    /// Photons a luminophore absorbed and re-emitted at a new wavelength (none without
+    /// fluorescence).
+    pub reemissions: u64,
     /// Seconds the batches took to trace, summed over batches (thread time, not wall time).
     pub trace_seconds: f64,
 }
@@ -182,6 +219,7 @@ impl Counters {
         self.splats += o.splats;
         self.free_flights += o.free_flights;
         self.phase_samples += o.phase_samples;
+        self.reemissions += o.reemissions;
         self.trace_seconds += o.trace_seconds;
     }
 }
@@ -198,6 +236,7 @@ impl Tallies {
         t.farfield_lm = Channel::new(scene.farfield_bins());
         t.spectra = Channel::new(scene.spectrum_bins());
         t.spectra_absorbed = Channel::new(scene.spectrum_bins());
+        t.reemitted = Channel::new(scene.media.len());
         t
     }
 
@@ -214,6 +253,7 @@ impl Tallies {
             farfield_lm: Channel::new(0),
             spectra: Channel::new(0),
             spectra_absorbed: Channel::new(0),
+            reemitted: Channel::new(0),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
@@ -236,6 +276,7 @@ impl Tallies {
             (&mut self.farfield_lm, &b.farfield_lm),
             (&mut self.spectra, &b.spectra),
             (&mut self.spectra_absorbed, &b.spectra_absorbed),
+            (&mut self.reemitted, &b.reemitted),
         ] {
             a.merge(x, b.photons);
         }

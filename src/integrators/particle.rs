@@ -84,12 +84,17 @@ pub struct Kernel<'a> {
 pub const PANIC_TEST_SEED: u64 = 0xDEAD_BEEF;
 
 impl Kernel<'_> {
-    /// Whether hero wavelengths are used: spectral transport with a film, no dispersion and no
+    /// Whether hero wavelengths are used: spectral transport with a film, no dispersion, no
     /// scattering medium (whose free flights follow the hero's own μt: each photon keeps one
-    /// wavelength there).
+    /// wavelength there) and no fluorescence (which changes it).
     pub fn uses_hero(&self) -> bool {
         let fx = &self.scene.effects;
-        self.options.hero && fx.spectral && !fx.dispersion && !fx.volume_scattering && self.camera.is_some()
+        self.options.hero
+            && fx.spectral
+            && !fx.dispersion
+            && !fx.volume_scattering
+            && !fx.fluorescence
+            && self.camera.is_some()
     }
 
     /// Traces one batch, dispatching once to the kernel specialised for the run.
@@ -216,17 +221,22 @@ impl Kernel<'_> {
         let mut s = Sampler::for_batch(scene.simulation.seed, batch);
         let strata = self.options.stratified.then(|| latin_hypercube(count as usize, &mut s));
         let mut out = Tallies::for_scene(scene);
-        let mut incident = HistoryScores::new(n_surfaces);
+        // Re-emission changes a photon's wavelength and with it the luminous efficacy of what it
+        // scores later: with fluorescence the lumens are kept score by score.
+        let fluorescent = SPECTRAL && scene.effects.fluorescence;
+        let scores = |n: usize| if fluorescent { HistoryScores::with_luminous(n) } else { HistoryScores::new(n) };
+        let mut incident = scores(n_surfaces);
         // A row per surface, then one per medium (`[media]`).
-        let mut absorbed = HistoryScores::new(n_surfaces + scene.media.len());
+        let mut absorbed = scores(n_surfaces + scene.media.len());
+        let mut reemitted = HistoryScores::new(if fluorescent { scene.media.len() } else { 0 });
         let surface_medium = &scene.surface_medium;
         // Irradiance maps: one branch per arrival, not taken in scenes without maps.
         let maps: Vec<Option<&SurfaceMap>> = scene.surfaces.iter().map(|s| s.map.as_ref()).collect();
         let has_maps = maps.iter().any(|m| m.is_some());
-        let mut texels = HistoryScores::new(if has_maps { scene.map_texels() } else { 0 });
+        let mut texels = scores(if has_maps { scene.map_texels() } else { 0 });
         // Far-field detectors and surface spectra, likewise off unless asked for.
         let detectors = &scene.detectors;
-        let mut farfield = HistoryScores::new(scene.farfield_bins());
+        let mut farfield = scores(scene.farfield_bins());
         let spectrum_bins: Vec<Option<(usize, usize)>> = scene.surfaces.iter().map(|s| s.spectrum_bins).collect();
         let has_spectra = spectrum_bins.iter().any(|b| b.is_some());
         let mut spectra = HistoryScores::new(scene.spectrum_bins());
@@ -255,7 +265,17 @@ impl Kernel<'_> {
                 None => std::array::from_fn(|_| s.uniform()),
             };
             let birth = self.emitter.emit::<SPECTRAL>(geo, &u);
-            let lambda = birth.lambda_nm;
+            // The photon's wavelength and colour weights (changed only by re-emission).
+            let mut lambda = birth.lambda_nm;
+            let mut xyz = birth.xyz;
+            // Luminous efficacy of the history: K_m ȳ(λ) at its wavelength, or its light's
+            // spectrum-averaged efficacy in grey transport (see `photometry`).
+            let lm_per_w = if SPECTRAL { photometry::efficacy_at(lambda) } else { scene.lights[birth.light].lm_per_w };
+            if fluorescent {
+                for h in [&mut incident, &mut absorbed, &mut texels, &mut farfield] {
+                    h.set_efficacy(lm_per_w);
+                }
+            }
             // Counted from what emission returned (grey births carry NaN), not from the flag.
             out.counters.wavelength_samples += lambda.is_finite() as u64;
             let mut hero = if HERO { Hero::new(self.emitter, &birth, range) } else { Hero::default() };
@@ -273,9 +293,9 @@ impl Kernel<'_> {
             // that stretch is medium too (at 50 m from the scene's centre it is 20 µm, a fifth of
             // a tissue mean free path). Zero from a free point (emission, a volume collision).
             let mut head_start = 0.0f64;
-            // μs and μa of the medium the photon is in, at its wavelength (fixed for the photon):
-            // looked up when it enters a medium, not at every collision.
-            let mut coefficients: Option<(u32, f64, f64)> = None;
+            // μs, μa and the luminophore's μf of the medium the photon is in, at its wavelength:
+            // looked up when it enters a medium or changes wavelength, not at every collision.
+            let mut coefficients: Option<(u32, f64, f64, f64)> = None;
             let mut dir = birth.dir;
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
@@ -295,23 +315,30 @@ impl Kernel<'_> {
                 let mut absorbing = None;
                 if let Some(v) = volume {
                     let med = &scene.media[v as usize];
-                    let (mu_s, mu_a) = match coefficients {
-                        Some((w, mu_s, mu_a)) if w == v => (mu_s, mu_a),
+                    let (mu_s, mu_a, mu_f) = match coefficients {
+                        Some((w, mu_s, mu_a, mu_f)) if w == v => (mu_s, mu_a, mu_f),
                         _ => {
+                            let mu_f = match &med.fluorescence {
+                                Some(f) if fluorescent => f.absorption_per_m.eval(lambda),
+                                _ => 0.0,
+                            };
                             let (mu_s, mu_a) = (med.scattering_per_m.eval(lambda), med.absorption_per_m.eval(lambda));
-                            coefficients = Some((v, mu_s, mu_a));
-                            (mu_s, mu_a)
+                            coefficients = Some((v, mu_s, mu_a, mu_f));
+                            (mu_s, mu_a, mu_f)
                         }
                     };
-                    if mu_s > 0.0 {
+                    if mu_s > 0.0 || mu_f > 0.0 {
                         out.counters.free_flights += 1;
-                        let mu_t = mu_a + mu_s;
+                        let mu_t = mu_a + mu_s + mu_f;
                         let t = media::free_flight(mu_t, s.uniform());
                         // A collision needs the boundary ahead (with none, the photon has left).
                         if let Some(h) = next.filter(|h| t < h.t as f64 + head_start) {
                             let row = (n_surfaces + v as usize) as u32;
-                            let albedo = mu_s / mu_t;
-                            if EXPECTED && weight >= ROULETTE_WEIGHT {
+                            // The medium's own absorption first; what survives is scattered or
+                            // taken by the luminophore.
+                            let albedo = (mu_s + mu_f) / mu_t;
+                            let expected_here = EXPECTED && weight >= ROULETTE_WEIGHT;
+                            if expected_here {
                                 absorb(row, weight * (1.0 - albedo), lambda, &mut absorbed, &mut spectra_absorbed);
                                 weight *= albedo;
                             } else if !(s.uniform() < albedo) {
@@ -323,15 +350,53 @@ impl Kernel<'_> {
                                 break;
                             }
                             scatterings += 1;
-                            out.counters.phase_samples += 1;
                             // Within the head start the collision is at the origin (a shift of at
                             // most the error bound), which is safely inside.
                             if t >= head_start {
                                 origin = collision_point(geo, &h, dir, h.t as f64 + head_start - t);
                             }
                             head_start = 0.0;
-                            dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
                             skip = NO_PRIM;
+                            let luminophore = match &med.fluorescence {
+                                Some(f)
+                                    if mu_f > 0.0
+                                        && media::fluorescence::luminophore_absorbs(mu_s, mu_f, s.uniform()) =>
+                                {
+                                    f
+                                }
+                                _ => {
+                                    out.counters.phase_samples += 1;
+                                    dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
+                                    continue;
+                                }
+                            };
+                            // Absorbed by the luminophore: re-emitted with probability q (expected
+                            // value: the share 1 − q stays in the medium).
+                            let q = luminophore.quantum_yield;
+                            if expected_here {
+                                absorb(row, weight * (1.0 - q), lambda, &mut absorbed, &mut spectra_absorbed);
+                                weight *= q;
+                                if weight == 0.0 {
+                                    break;
+                                }
+                            } else if !(s.uniform() < q) {
+                                absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                                break;
+                            }
+                            let (new_lambda, new_dir, energy) =
+                                media::fluorescence::reemit(luminophore, lambda, s.uniform(), s.uniform(), s.uniform());
+                            // The Stokes loss (1 − λ/λ') of the weight is heat in the medium.
+                            absorb(row, weight * (1.0 - energy), lambda, &mut absorbed, &mut spectra_absorbed);
+                            weight *= energy;
+                            reemitted.add(v, weight);
+                            out.counters.reemissions += 1;
+                            lambda = new_lambda;
+                            xyz = self.emitter.colour(lambda);
+                            for h in [&mut incident, &mut absorbed, &mut texels, &mut farfield] {
+                                h.set_efficacy(photometry::efficacy_at(lambda));
+                            }
+                            coefficients = None;
+                            dir = new_dir;
                             continue;
                         }
                     } else if mu_a > 0.0 {
@@ -412,7 +477,7 @@ impl Kernel<'_> {
                                 }
                                 None => {
                                     let f = bsdf.f(wo, w, Mode::Importance);
-                                    birth.xyz * (weight * f.spectral.0[0]) as f32 * (geometric * f.angular as f32)
+                                    xyz * (weight * f.spectral.0[0]) as f32 * (geometric * f.angular as f32)
                                 }
                             }
                         });
@@ -483,9 +548,6 @@ impl Kernel<'_> {
             }
             out.scatterings += scatterings as u64;
             out.scatterings_sq += (scatterings as u64).pow(2);
-            // Luminous efficacy of this history: K_m ȳ(λ) at its wavelength, or its light's
-            // spectrum-averaged efficacy in grey transport (see `photometry`).
-            let lm_per_w = if SPECTRAL { photometry::efficacy_at(lambda) } else { scene.lights[birth.light].lm_per_w };
             incident.flush_scaled(&mut out.incident.moments, Some((&mut out.incident_lm.moments, lm_per_w)));
             absorbed.flush_scaled(&mut out.absorbed.moments, Some((&mut out.absorbed_lm.moments, lm_per_w)));
             if has_maps {
@@ -497,6 +559,9 @@ impl Kernel<'_> {
             if SPECTRAL && has_spectra {
                 spectra.flush(&mut out.spectra.moments);
                 spectra_absorbed.flush(&mut out.spectra_absorbed.moments);
+            }
+            if fluorescent {
+                reemitted.flush(&mut out.reemitted.moments);
             }
         }
         out.photons = count;

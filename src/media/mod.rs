@@ -1,8 +1,9 @@
 //! What happens between surfaces: Beer–Lambert absorption inside a dielectric with an
 //! absorption coefficient α(λ), free flights through a scattering medium (`[media]`) and its
-//! phase function (`phase`), and which medium a path is in after crossing a boundary. Every
+//! phase function (`phase`), re-emission by a luminophore (`fluorescence`), and which medium a path is in after crossing a boundary. Every
 //! integrator uses these; a path in a clear medium or outside every dielectric loses nothing.
 
+pub mod fluorescence;
 pub mod phase;
 
 use glam::Vec3A;

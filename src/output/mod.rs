@@ -44,6 +44,12 @@ pub struct MediumRow {
     pub volume_m3: f64,
     pub absorbed_w: f64,
     pub absorbed_w_stderr: f64,
+    /// With fluorescence: the power its luminophore re-emitted at new wavelengths (its absorbed
+    /// power is then net of it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reemitted_w: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reemitted_w_stderr: Option<f64>,
 }
 
 /// The flux.csv columns, in order.
@@ -170,7 +176,15 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
         .enumerate()
         .map(|(k, m)| {
             let (absorbed_w, absorbed_w_stderr) = r.absorbed(scene.surfaces.len() + k);
-            MediumRow { name: m.name.clone(), volume_m3: m.volume_m3, absorbed_w, absorbed_w_stderr }
+            let reemitted = m.fluorescence.as_ref().map(|_| r.reemitted(k));
+            MediumRow {
+                name: m.name.clone(),
+                volume_m3: m.volume_m3,
+                absorbed_w,
+                absorbed_w_stderr,
+                reemitted_w: reemitted.map(|x| x.0),
+                reemitted_w_stderr: reemitted.map(|x| x.1),
+            }
         })
         .collect();
     let emitted_lm = scene.lights.iter().map(|l| l.power_w * l.lm_per_w).sum();
@@ -290,6 +304,9 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
             "{:<width$}  {:>12}  {:>10}  {:>12.6}  {:>10.3e}  (medium, {:.4e} m³)\n",
             m.name, "-", "", m.absorbed_w, m.absorbed_w_stderr, m.volume_m3
         ));
+        if let (Some(w), Some(se)) = (m.reemitted_w, m.reemitted_w_stderr) {
+            s.push_str(&format!("{:<width$}  re-emitted {w:.6} ± {se:.3e} W by its luminophore\n", ""));
+        }
     }
     let l = &f.ledger;
     s.push_str(&format!(

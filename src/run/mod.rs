@@ -620,6 +620,11 @@ impl RunResult {
         self.tallies.absorbed_estimate(i, self.emitted_w, self.transport.error_model())
     }
 
+    /// (re-emitted W, standard error) of medium `k`'s luminophore.
+    pub fn reemitted(&self, k: usize) -> (f64, f64) {
+        self.tallies.estimate(&self.tallies.reemitted, k, self.emitted_w, self.transport.error_model())
+    }
+
     /// (incident lm, standard error) of surface `i`.
     pub fn incident_lm(&self, i: usize) -> (f64, f64) {
         self.tallies.estimate(&self.tallies.incident_lm, i, self.emitted_w, self.transport.error_model())

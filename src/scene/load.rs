@@ -13,7 +13,7 @@ use super::*;
 use crate::error::{Error, InputError};
 use crate::geometry::Geometry;
 use crate::spectrum::photometry;
-use crate::spectrum::Spectrum;
+use crate::spectrum::{SpectralSampler, Spectrum};
 
 const ROOT_KEYS: &[&str] =
     &["simulation", "camera", "scene", "materials", "media", "surfaces", "lights", "reference", "detectors"];
@@ -127,6 +127,8 @@ struct LightSpec {
     distribution: Distribution,
     ies: Option<IesLight>,
     axis: Option<DVec3>,
+    /// `spectrum_bins` of an area light (the light as a surface: what arrives on it).
+    spectrum_bins: Option<usize>,
     path: String,
     line: usize,
     shape_line: usize,
@@ -205,7 +207,7 @@ impl<'s> Loader<'s> {
         let simulation = self.simulation(root)?;
         let range = simulation.wavelength_range_nm;
 
-        let mut media = self.media(root)?;
+        let mut media = self.media(root, range)?;
         let (mut materials, material_index, material_medium) = self.materials(root, range, &media)?;
         let mut names = Names::default();
         let entries = self.surface_entries(root, &material_index, &mut names)?;
@@ -230,8 +232,13 @@ impl<'s> Loader<'s> {
             effects.absorbing_media |= positive(&m.absorption_per_m);
             effects.volume_scattering |= positive(&m.scattering_per_m);
             effects.spectral |= varies(&m.absorption_per_m) || varies(&m.scattering_per_m);
+            // Re-emission changes a photon's wavelength: only spectral transport carries one.
+            if m.fluorescence.as_ref().is_some_and(|f| positive(&f.absorption_per_m)) {
+                effects.fluorescence = true;
+                effects.spectral = true;
+            }
         }
-        if effects.volume_scattering && camera.is_some() {
+        if (effects.volume_scattering || effects.fluorescence) && camera.is_some() {
             warnings.push(
                 "the light-traced image does not show the light scattered inside media yet (a medium vertex is not \
                  splatted to the camera); flux, maps and far fields include it"
@@ -246,6 +253,9 @@ impl<'s> Loader<'s> {
         for m in &mut media {
             simplify(&mut m.absorption_per_m, range);
             simplify(&mut m.scattering_per_m, range);
+            if let Some(f) = &mut m.fluorescence {
+                simplify(&mut f.absorption_per_m, range);
+            }
         }
 
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
@@ -346,8 +356,9 @@ impl<'s> Loader<'s> {
         }
     }
 
-    /// `[media]`: each homogeneous medium, μa and μs (spectra, per metre) and its phase function.
-    fn media(&self, root: Table<'s, '_>) -> R<Vec<Medium>> {
+    /// `[media]`: each homogeneous medium, μa and μs (spectra, per metre), its phase function and
+    /// its luminophore.
+    fn media(&self, root: Table<'s, '_>, range: (f64, f64)) -> R<Vec<Medium>> {
         let mut media = Vec::new();
         root.with("media", |n| {
             let t = n.table()?;
@@ -355,9 +366,6 @@ impl<'s> Loader<'s> {
                 let m = t.require(key, |n| {
                     let t = n.table()?;
                     t.allow(&["absorption_per_m", "scattering_per_m", "phase", "fluorescence"])?;
-                    if t.has("fluorescence") {
-                        return Err(t.err_at("fluorescence", "fluorescence is not supported yet"));
-                    }
                     let coefficient = |k: &str| -> R<Spectrum> {
                         Ok(t.with(k, |n| self.spectrum(n, SpectrumUse::NonNegative))?
                             .unwrap_or(Spectrum::Constant(0.0)))
@@ -365,13 +373,50 @@ impl<'s> Loader<'s> {
                     let absorption_per_m = coefficient("absorption_per_m")?;
                     let scattering_per_m = coefficient("scattering_per_m")?;
                     let phase = t.with("phase", |n| self.phase(n))?.unwrap_or(Phase::Isotropic);
-                    Ok(Medium { name: key.to_string(), absorption_per_m, scattering_per_m, phase, volume_m3: 0.0 })
+                    let fluorescence = t.with("fluorescence", |n| self.fluorescence(n.table()?, range))?;
+                    Ok(Medium {
+                        name: key.to_string(),
+                        absorption_per_m,
+                        scattering_per_m,
+                        phase,
+                        fluorescence,
+                        volume_m3: 0.0,
+                    })
                 })?;
                 media.push(m);
             }
             Ok(())
         })?;
         Ok(media)
+    }
+
+    /// `fluorescence = { absorption_per_m, emission, quantum_yield }`: the luminophore's own
+    /// absorption coefficient (per metre), its emission spectrum (photon numbers per nm, any
+    /// scale) and the share of absorbed photons it re-emits.
+    fn fluorescence(&self, t: Table<'s, '_>, range: (f64, f64)) -> R<Fluorescence> {
+        t.allow(&["absorption_per_m", "emission", "quantum_yield"])?;
+        let absorption_per_m = t.require("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
+        let emission = t.require("emission", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
+        let Some(emission_sampler) = SpectralSampler::new(&emission, range) else {
+            return Err(t.err_at(
+                "emission",
+                format!(
+                    "the emission spectrum has no power inside the simulated wavelengths {}–{} nm \
+                     (simulation.wavelength_range_nm)",
+                    range.0, range.1
+                ),
+            ));
+        };
+        let quantum_yield = t.require("quantum_yield", |n| {
+            let q = n.f64()?;
+            if !(0.0..=1.0).contains(&q) {
+                return Err(n.err(format!(
+                    "quantum_yield is the share of absorbed photons re-emitted and must lie in [0, 1], found {q}"
+                )));
+            }
+            Ok(q)
+        })?;
+        Ok(Fluorescence { absorption_per_m, emission, emission_sampler, quantum_yield })
     }
 
     /// `phase = "isotropic"` or `{ henyey_greenstein = g }`, −1 < g < 1.
@@ -418,16 +463,21 @@ impl<'s> Loader<'s> {
         Ok(entries)
     }
 
-    /// One `[[surfaces]]` entry: its keys, material, shape (not yet triangulated) and map.
-    fn surface_entry(&self, t: Table<'s, '_>, material_index: &HashMap<String, usize>) -> R<Entry> {
-        t.allow(&["name", "material", "shape", "map", "spectrum_bins"])?;
-        let spectrum_bins = t.with("spectrum_bins", |n| {
+    /// `spectrum_bins = N` on a surface or an area light.
+    fn spectrum_bins(&self, t: Table<'s, '_>) -> R<Option<usize>> {
+        t.with("spectrum_bins", |n| {
             let k = n.u64()?;
             if !(1..=MAX_SPECTRUM_BINS).contains(&k) {
                 return Err(n.err(format!("spectrum_bins must be between 1 and {MAX_SPECTRUM_BINS}, found {k}")));
             }
             Ok(k as usize)
-        })?;
+        })
+    }
+
+    /// One `[[surfaces]]` entry: its keys, material, shape (not yet triangulated) and map.
+    fn surface_entry(&self, t: Table<'s, '_>, material_index: &HashMap<String, usize>) -> R<Entry> {
+        t.allow(&["name", "material", "shape", "map", "spectrum_bins"])?;
+        let spectrum_bins = self.spectrum_bins(t)?;
         let name = self.name(t)?;
         let material = self.material_ref(t, material_index)?;
         let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, false))?;
@@ -505,11 +555,19 @@ impl<'s> Loader<'s> {
             "distribution",
             "material",
             "direction",
+            "spectrum_bins",
         ])?;
         let name = self.name(t)?;
         let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
         let material = if t.has("material") { self.material_ref(t, material_index)? } else { 0 };
         let is_point = matches!(shape, ShapeSpec::Point { .. });
+        let spectrum_bins = self.spectrum_bins(t)?;
+        if is_point && spectrum_bins.is_some() {
+            return Err(t.err_at(
+                "spectrum_bins",
+                "a point light is not a surface: nothing arrives on it, so it has no spectrum to tally",
+            ));
+        }
         // SPEC: area lights default to lambertian; a point light has no surface to be
         // Lambertian about, so it defaults to isotropic.
         let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
@@ -598,6 +656,7 @@ impl<'s> Loader<'s> {
             distribution,
             ies,
             axis,
+            spectrum_bins,
             path: t.path.to_string(),
             line: t.line_of_key("name"),
             shape_line: t.line_of_key("shape"),
@@ -738,7 +797,7 @@ impl<'s> Loader<'s> {
                         light: Some(i),
                         map: None,
                         uvs: None,
-                        spectrum_bins: None,
+                        spectrum_bins: spec.spectrum_bins,
                         key,
                         line,
                     });

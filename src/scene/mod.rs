@@ -213,8 +213,31 @@ pub struct Medium {
     pub absorption_per_m: Spectrum,
     pub scattering_per_m: Spectrum,
     pub phase: Phase,
+    /// A luminophore dissolved in it (`fluorescence`), absorbing on top of μa and re-emitting.
+    pub fluorescence: Option<Fluorescence>,
     /// The volume it fills (m³): the enclosed volumes of its dielectrics.
     pub volume_m3: f64,
+}
+
+/// A medium's luminophore (a dye, a phosphor): it absorbs with its own coefficient μf(λ) per
+/// metre; each absorbed photon is re-emitted with probability `quantum_yield`, isotropically, at
+/// a wavelength drawn from `emission` (a photon-number spectrum, as spectrofluorometers report
+/// it and pvtrace samples it). `media::fluorescence` holds the physics.
+#[derive(Clone, Debug)]
+pub struct Fluorescence {
+    pub absorption_per_m: Spectrum,
+    pub emission: Spectrum,
+    pub emission_sampler: crate::spectrum::SpectralSampler,
+    pub quantum_yield: f64,
+}
+
+impl PartialEq for Fluorescence {
+    // The sampler is a function of the emission spectrum and the range.
+    fn eq(&self, o: &Self) -> bool {
+        self.absorption_per_m == o.absorption_per_m
+            && self.emission == o.emission
+            && self.quantum_yield == o.quantum_yield
+    }
 }
 
 /// A named, tallied surface: the triangles of one `[[surfaces]]` entry or of one area light.
@@ -317,6 +340,8 @@ pub struct Effects {
     pub absorbing_media: bool,
     /// A medium scatters: photons draw free-flight distances and sample its phase function.
     pub volume_scattering: bool,
+    /// A medium's luminophore absorbs and re-emits at new wavelengths (forces spectral transport).
+    pub fluorescence: bool,
     pub camera: bool,
 }
 
@@ -333,6 +358,7 @@ impl Effects {
             (self.dispersion, "dispersion"),
             (self.absorbing_media, "absorbing_media"),
             (self.volume_scattering, "volume_scattering"),
+            (self.fluorescence, "fluorescence"),
             (self.camera, "camera"),
         ];
         all.iter().filter(|(on, _)| *on).map(|(_, n)| *n).collect()

@@ -1,0 +1,209 @@
+//! Fluorescence (`[media.NAME] fluorescence`): a luminophore absorbs, re-emits the share
+//! `quantum_yield` of the photons it absorbs at wavelengths drawn from its emission spectrum
+//! (a photon-number spectrum), and the ledger books absorbed, re-emitted and escaped power.
+//!
+//! The scenes keep the emission band (550–650 nm) outside the absorption band (below 510 nm),
+//! so a re-emitted photon is never absorbed again and every expectation is a closed form:
+//! the power re-emitted per watt absorbed is q·⟨λ/λ'⟩ (each photon's energy hc/λ becomes hc/λ'),
+//! ⟨1/λ'⟩ = ∫E(λ')/λ' dλ' / ∫E, integrated here by the midpoint rule on 0.01 nm steps (the
+//! triangle's error is below 10⁻⁹ relative).
+//!
+//! Statistical bounds: |z| < 4 from the run's own standard errors (a false failure 6·10⁻⁵ per
+//! comparison); seeds fixed.
+
+mod common;
+use common::{assert_z, surface};
+
+use photon::spectrum::photometry::efficacy_at;
+
+/// The emission spectrum of every scene here: a triangle from 550 to 650 nm, peak at 600.
+const EMISSION: &str = "{ table = [[550, 0], [600, 1], [650, 0]] }";
+
+fn emission(l: f64) -> f64 {
+    (1.0 - (l - 600.0).abs() / 50.0).max(0.0)
+}
+
+/// ∫ g(λ)·E(λ) dλ / ∫ E over the emission band (midpoint rule).
+fn emission_mean(g: impl Fn(f64) -> f64) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    let step = 0.01;
+    for i in 0..10_000 {
+        let l = 550.0 + (i as f64 + 0.5) * step;
+        num += g(l) * emission(l);
+        den += emission(l);
+    }
+    num / den
+}
+
+/// A 0.1 m ball of dye (index-matched, μf = 500 /m below 500 nm: optical depth ≥ 49 from its
+/// centre, so the light's photons are all absorbed) inside an absorbing sphere of 1 m, with a
+/// 1 W point light at 450 nm at the centre.
+fn dye_ball(q: f64) -> String {
+    format!(
+        r#"[simulation]
+wavelength_range_nm = [400, 700]
+
+[media.dye]
+fluorescence = {{ absorption_per_m = {{ table = [[400, 500], [500, 500], [510, 0]] }}, emission = {EMISSION}, quantum_yield = {q} }}
+
+[materials.glass]
+type = "dielectric"
+ior = 1.0
+outside_ior = 1.0
+medium = "dye"
+
+[[surfaces]]
+name = "dyeball"
+material = "glass"
+shape = {{ type = "sphere", center = [0, 0, 0], radius = 0.1 }}
+
+[[surfaces]]
+name = "walls"
+material = "absorber"
+shape = {{ type = "sphere", center = [0, 0, 0], radius = 1 }}
+
+[[lights]]
+name = "lamp"
+shape = {{ type = "point", position = [0, 0, 0] }}
+spectrum = {{ table = [[449, 0], [450, 1], [451, 0]] }}
+power_w = 1
+"#
+    )
+}
+
+fn simulate(
+    toml: &str,
+    photons: u64,
+    seed: u64,
+    transport: photon::integrators::particle::TransportOptions,
+) -> (photon::scene::Scene, photon::run::RunResult, photon::output::Flux) {
+    use photon::run::{apply_options, RunOptions};
+    let mut s = common::scene(toml);
+    let opts =
+        RunOptions { photons: Some(photons), seed: Some(seed), threads: Some(2), transport, ..Default::default() };
+    let chosen = apply_options(&mut s, &opts).unwrap();
+    let r = photon::run::simulate(&s, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    let f = photon::output::flux(&s, &r);
+    (s, r, f)
+}
+
+#[test]
+fn a_closed_dye_ball_re_emits_the_quantum_yield_of_what_it_absorbs() {
+    let q = 0.8;
+    // The light's 450 nm (its 1 nm triangle has mean 450 exactly and ⟨λ⟩ enters linearly).
+    let energy = 450.0 * emission_mean(|l| 1.0 / l);
+    let n = 200_000u64;
+    for (k, transport) in [common::EXPECTED, common::ANALOG].into_iter().enumerate() {
+        let (s, r, f) = simulate(&dye_ball(q), n, 11 + k as u64, transport);
+        let what = format!("{:?}", transport.estimator);
+        assert!(s.effects.fluorescence && s.effects.spectral, "{:?}", s.effects.names());
+        assert!(!s.effects.volume_scattering, "the dye does not scatter");
+        let l = &f.ledger;
+        assert!(l.relative_residual() < 1e-12 && l.escaped_w == 0.0 && l.truncated_w == 0.0, "{l:?}");
+        let c = r.tallies.counters;
+        if k == 0 {
+            // Expected value: every photon is absorbed by the dye and re-emitted with weight q.
+            assert_eq!(c.reemissions, n, "{c:?}");
+        } else {
+            // Analog: each absorbed photon is re-emitted with probability q (binomial).
+            let se = (n as f64 * q * (1.0 - q)).sqrt();
+            assert_z(&format!("{what}: re-emitted photons"), c.reemissions as f64, n as f64 * q, se, 4.0);
+        }
+        let dye = &f.media[0];
+        let (re, re_se) = (dye.reemitted_w.unwrap(), dye.reemitted_w_stderr.unwrap());
+        println!("{what}: re-emitted {re:.6} ± {re_se:.2e} W against q⟨λ/λ'⟩ = {:.6}", q * energy);
+        assert_z(&format!("{what}: re-emitted W"), re, q * energy, re_se, 4.0);
+        // Nothing re-emitted is absorbed again: the walls take it all, and the dye keeps the rest
+        // (the (1 − q) photons and the Stokes loss), net of re-emission.
+        let walls = surface(&f, "walls");
+        assert!((walls.absorbed_w - re).abs() < 1e-9, "walls {} against re-emitted {re}", walls.absorbed_w);
+        assert!((dye.absorbed_w - (1.0 - re)).abs() < 1e-9, "{dye:?}");
+        // Lumens follow each photon's wavelength after re-emission: q·450·⟨683ȳ(λ')/λ'⟩ per W.
+        let lm = q * 450.0 * emission_mean(|l| efficacy_at(l) / l);
+        assert_z(&format!("{what}: walls' lumens"), walls.incident_lm, lm, walls.incident_lm_stderr, 4.0);
+    }
+}
+
+#[test]
+fn an_optically_thin_dye_escapes_with_its_emission_spectrum() {
+    // A 1 cm dye plate (μf = 5 /m: optical depth 0.05) under a normal collimated beam at 445 nm,
+    // inside an absorbing sphere tallying 10 nm bins. The plate absorbs 1 − e^{−0.05} exactly
+    // (the beam crosses 1 cm), and re-emits q of it, so the power per emission bin is
+    //   P_k = (1 − e^{−τ})·q·445·∫_bin E(λ)/λ dλ / ∫E,
+    // and the beam's own bin keeps e^{−τ}. χ² over the ten emission bins, each bin's standard
+    // error from the run; the bound 35.6 is χ²'s 0.9999 quantile at 10 degrees of freedom.
+    let q = 0.9;
+    let toml = format!(
+        r#"[simulation]
+wavelength_range_nm = [400, 700]
+
+[media.dye]
+fluorescence = {{ absorption_per_m = {{ table = [[400, 5], [500, 5], [510, 0]] }}, emission = {EMISSION}, quantum_yield = {q} }}
+
+[materials.glass]
+type = "dielectric"
+ior = 1.0
+outside_ior = 1.0
+medium = "dye"
+
+[[surfaces]]
+name = "plate"
+material = "glass"
+shape = {{ type = "box", min = [-0.1, -0.1, -0.01], max = [0.1, 0.1, 0] }}
+
+[[surfaces]]
+name = "walls"
+material = "absorber"
+spectrum_bins = 30
+shape = {{ type = "sphere", center = [0, 0, 0], radius = 1 }}
+
+[[lights]]
+name = "beam"
+shape = {{ type = "quad", corners = [[-0.001, -0.001, 0.01], [-0.001, 0.001, 0.01], [0.001, 0.001, 0.01], [0.001, -0.001, 0.01]] }}
+distribution = "collimated"
+spectrum = {{ table = [[444, 0], [445, 1], [446, 0]] }}
+power_w = 1
+"#
+    );
+    let (_, r, f) = simulate(&toml, 1_000_000, 5, common::EXPECTED);
+    assert!(f.ledger.relative_residual() < 1e-12, "{:?}", f.ledger);
+    let t = &r.tallies;
+    let bin = |k: usize| t.estimate(&t.spectra, k, r.emitted_w, r.transport.error_model());
+    let tau = 5.0 * 0.01;
+    let absorbed = 1.0 - (-tau as f64).exp();
+    let (through, through_se) = bin(4);
+    assert_z("the beam's bin", through, (-tau as f64).exp(), through_se, 4.0);
+    let mut chi2 = 0.0;
+    for k in 15..25 {
+        let (lo, hi) = (400.0 + 10.0 * k as f64, 410.0 + 10.0 * k as f64);
+        let share = emission_mean(|l| if l >= lo && l < hi { 1.0 / l } else { 0.0 });
+        let want = absorbed * q * 445.0 * share;
+        let (got, se) = bin(k);
+        println!("{lo}–{hi} nm: {got:.6} ± {se:.2e} against {want:.6}");
+        assert!(se > 0.0);
+        chi2 += ((got - want) / se).powi(2);
+    }
+    println!("χ² = {chi2:.2} over 10 bins");
+    assert!(chi2 < 35.6, "escaping spectrum against the emission spectrum: χ² = {chi2:.2}");
+    for k in (0..30).filter(|k| *k != 4 && !(15..25).contains(k)) {
+        assert_eq!(bin(k).0, 0.0, "bin {k} should be empty");
+    }
+}
+
+#[test]
+fn a_grey_scene_with_a_dye_becomes_spectral_and_one_without_re_emits_nothing() {
+    // Constant μf and a flat light: nothing else varies, the dye alone makes transport spectral.
+    let toml = dye_ball(0.5)
+        .replace("{ table = [[400, 500], [500, 500], [510, 0]] }", "500")
+        .replace("spectrum = { table = [[449, 0], [450, 1], [451, 0]] }\n", "");
+    let (s, r, f) = simulate(&toml, 20_000, 3, common::EXPECTED);
+    assert!(s.effects.spectral && s.effects.fluorescence, "{:?}", s.effects.names());
+    assert!(r.tallies.counters.reemissions > 0 && f.media[0].reemitted_w.is_some());
+    // The same ball with the luminophore's absorption zero: no fluorescence effect, nothing
+    // re-emitted, and the light passes.
+    let clear = dye_ball(0.5).replace("{ table = [[400, 500], [500, 500], [510, 0]] }", "0");
+    let (s, r, f) = simulate(&clear, 20_000, 3, common::EXPECTED);
+    assert!(!s.effects.fluorescence, "{:?}", s.effects.names());
+    assert_eq!(r.tallies.counters.reemissions, 0);
+    assert!((surface(&f, "walls").absorbed_w - 1.0).abs() < 1e-12);
+}
