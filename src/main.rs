@@ -389,10 +389,11 @@ fn describe(scene: &Scene) -> String {
             ));
             if let Some(f) = &m.fluorescence {
                 s.push_str(&format!(
-                    "    luminophore μf {} /m, quantum yield {}, emission peak {} nm\n",
+                    "    luminophore μf {} /m, quantum yield {}, emission peak {} nm{}\n",
                     range(&f.absorption_per_m),
                     f.quantum_yield,
-                    peak_nm(&f.emission, (lo, hi))
+                    peak_nm(&f.emission, (lo, hi)),
+                    if f.redshift { " (redshift only)" } else { "" }
                 ));
             }
         }

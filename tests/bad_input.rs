@@ -1288,7 +1288,7 @@ fn bad_media() {
     // text, the key path, the message.
     let fog = "[media.fog]\nabsorption_per_m = 1\nscattering_per_m = 10\n";
     let glass = "type = \"dielectric\"\nmedium = \"fog\"";
-    let cases: [(&str, &str, &str, &str, &str, &str); 13] = [
+    let cases: [(&str, &str, &str, &str, &str, &str); 14] = [
         (
             "medium-unknown",
             "type = \"dielectric\"\nmedium = \"smoke\"",
@@ -1368,6 +1368,14 @@ fn bad_media() {
             "fluorescence",
             "media.fog.fluorescence.emission",
             "no power inside the simulated wavelengths 360–830 nm",
+        ),
+        (
+            "fluorescence-sampling",
+            glass,
+            "[media.fog]\nfluorescence = { absorption_per_m = 5, emission = 1, quantum_yield = 1, emission_sampling = \"kT\" }\n",
+            "fluorescence",
+            "media.fog.fluorescence.emission_sampling",
+            "unknown emission_sampling \"kT\"",
         ),
         (
             "fluorescence-key",

@@ -390,11 +390,12 @@ impl<'s> Loader<'s> {
         Ok(media)
     }
 
-    /// `fluorescence = { absorption_per_m, emission, quantum_yield }`: the luminophore's own
-    /// absorption coefficient (per metre), its emission spectrum (photon numbers per nm, any
-    /// scale) and the share of absorbed photons it re-emits.
+    /// `fluorescence = { absorption_per_m, emission, quantum_yield, emission_sampling }`: the
+    /// luminophore's own absorption coefficient (per metre), its emission spectrum (photon
+    /// numbers per nm, any scale), the share of absorbed photons it re-emits, and which part of
+    /// the emission spectrum a re-emission draws from.
     fn fluorescence(&self, t: Table<'s, '_>, range: (f64, f64)) -> R<Fluorescence> {
-        t.allow(&["absorption_per_m", "emission", "quantum_yield"])?;
+        t.allow(&["absorption_per_m", "emission", "quantum_yield", "emission_sampling"])?;
         let absorption_per_m = t.require("absorption_per_m", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
         let emission = t.require("emission", |n| self.spectrum(n, SpectrumUse::NonNegative))?;
         let Some(emission_sampler) = SpectralSampler::new(&emission, range) else {
@@ -416,7 +417,17 @@ impl<'s> Loader<'s> {
             }
             Ok(q)
         })?;
-        Ok(Fluorescence { absorption_per_m, emission, emission_sampler, quantum_yield })
+        let redshift = t
+            .with("emission_sampling", |n| match n.str()? {
+                "full" => Ok(false),
+                "redshift" => Ok(true),
+                other => Err(n.err(format!(
+                    "unknown emission_sampling \"{other}\"; use \"full\" (the whole emission spectrum) or \
+                     \"redshift\" (its part at or above the absorbed wavelength)"
+                ))),
+            })?
+            .unwrap_or(false);
+        Ok(Fluorescence { absorption_per_m, emission, emission_sampler, quantum_yield, redshift })
     }
 
     /// `phase = "isotropic"` or `{ henyey_greenstein = g }`, −1 < g < 1.

@@ -229,6 +229,9 @@ pub struct Fluorescence {
     pub emission: Spectrum,
     pub emission_sampler: crate::spectrum::SpectralSampler,
     pub quantum_yield: f64,
+    /// `emission_sampling = "redshift"`: λ' only from the emission spectrum at or above the
+    /// absorbed λ (where none lies above, its longest wavelength); `"full"` (false): all of it.
+    pub redshift: bool,
 }
 
 impl PartialEq for Fluorescence {
@@ -237,6 +240,7 @@ impl PartialEq for Fluorescence {
         self.absorption_per_m == o.absorption_per_m
             && self.emission == o.emission
             && self.quantum_yield == o.quantum_yield
+            && self.redshift == o.redshift
     }
 }
 

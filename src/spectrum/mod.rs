@@ -350,6 +350,23 @@ impl SpectralSampler {
         i
     }
 
+    /// The share of ∫f below `x`: the u that `sample` maps to x.
+    pub fn cdf_at(&self, x: f64) -> f64 {
+        let n = self.xs.len();
+        if !(x > self.xs[0]) {
+            return 0.0;
+        }
+        if x >= self.xs[n - 1] {
+            return 1.0;
+        }
+        let i = (self.xs.partition_point(|&v| v <= x) - 1).min(n - 2);
+        let (x0, x1) = (self.xs[i], self.xs[i + 1]);
+        let (f0, f1) = (self.ys[i], self.ys[i + 1]);
+        let dx = x - x0;
+        let f = f0 + (f1 - f0) * dx / (x1 - x0);
+        ((self.cdf[i] + 0.5 * (f0 + f) * dx) / self.total()).min(1.0)
+    }
+
     /// λ with density f(λ)/∫f, from one uniform u in [0, 1).
     pub fn sample(&self, u: f64) -> f64 {
         let target = u * self.total();
@@ -475,7 +492,11 @@ mod tests {
         for k in 0..100 {
             let u = k as f64 / 100.0;
             assert!((sampler.sample(u) - (400.0 + 100.0 * u.sqrt())).abs() < 1e-9);
+            // cdf_at inverts sample: CDF(λ) = ((λ−400)/100)².
+            let l = 400.0 + 100.0 * u.sqrt();
+            assert!((sampler.cdf_at(l) - u).abs() < 1e-12, "cdf_at({l})");
         }
+        assert_eq!((sampler.cdf_at(350.0), sampler.cdf_at(400.0), sampler.cdf_at(500.0)), (0.0, 0.0, 1.0));
     }
 
     #[test]
