@@ -1314,12 +1314,12 @@ fn bad_media() {
             "give either medium or absorption_per_m, not both",
         ),
         (
-            "medium-outside",
-            "type = \"dielectric\"\nmedium = \"fog\"\noutside_medium = \"fog\"",
+            "medium-outside-unknown",
+            "type = \"dielectric\"\nmedium = \"fog\"\noutside_medium = \"smog\"",
             fog,
             "outside_medium",
             "materials.white.outside_medium",
-            "outside_medium is not supported yet",
+            "unknown medium \"smog\"; the [media] entries are: fog",
         ),
         (
             "medium-g",

@@ -321,7 +321,8 @@ fn thousands_of_degenerate_faces_give_one_warning() {
 
 #[test]
 fn unsupported_dielectric_geometry_is_refused() {
-    // Each ran silently before although the README says it is not supported.
+    // Each ran silently before although the README says it is not supported (or, nested, is
+    // declared inconsistently).
     let glass = "[materials.glass]\ntype = \"dielectric\"\nior = 1.5\n";
     let lamp = "[[lights]]\nname = \"lamp\"\nshape = { type = \"point\", position = [0, 3, 0] }\npower_w = 1\n";
     let surface =
@@ -329,10 +330,17 @@ fn unsupported_dielectric_geometry_is_refused() {
     let cases = [
         ("open", surface("pane", "{ type = \"quad\", corners = [[0,0,0],[0,0,1],[1,0,1],[1,0,0]] }"), "not closed"),
         (
+            // Nested, but the inner glass says its outside is air (outside_ior 1).
             "nested",
             surface("outer", "{ type = \"sphere\", center = [0,0,0], radius = 1 }")
                 + &surface("inner", "{ type = \"sphere\", center = [0,0,0], radius = 0.5 }"),
-            "nested",
+            "needs outside_ior equal to the ior of material \"glass\"",
+        ),
+        (
+            "touching",
+            surface("left", "{ type = \"box\", min = [0,0,0], max = [1,1,1] }")
+                + &surface("right", "{ type = \"box\", min = [1,0,0], max = [2,1,1] }"),
+            "share a face",
         ),
         (
             "camera-inside",

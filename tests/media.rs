@@ -277,3 +277,196 @@ fn a_slab_far_from_the_scene_centre_keeps_its_photons_inside() {
     let rays = r.tallies.counters.rays as f64 / 1e6;
     assert!(rays < 20.0, "{rays} rays per photon");
 }
+
+/// A box of medium "inner" (μa 1.2 cm⁻¹) nested in a box of medium "outer" (μa 1 cm⁻¹), both
+/// index-matched (n = 1), and a beam: from above (`light_z` = 0.1) or from inside the inner box.
+fn nested_boxes(light_z: f64) -> String {
+    format!(
+        r#"[scene]
+unit = "cm"
+
+[media.outer]
+absorption_per_m = 100
+
+[media.inner]
+absorption_per_m = 120
+
+[materials.outer]
+type = "dielectric"
+ior = 1.0
+medium = "outer"
+
+[materials.inner]
+type = "dielectric"
+ior = 1.0
+outside_ior = 1.0
+medium = "inner"
+outside_medium = "outer"
+
+[[surfaces]]
+name = "outer"
+material = "outer"
+shape = {{ type = "box", min = [-2, -2, -3], max = [2, 2, 0] }}
+
+[[surfaces]]
+name = "inner"
+material = "inner"
+shape = {{ type = "box", min = [-1, -1, -2], max = [1, 1, -1] }}
+
+[[surfaces]]
+name = "below"
+material = "absorber"
+shape = {{ type = "quad", corners = [[-1e3, -1e3, -4], [1e3, -1e3, -4], [1e3, 1e3, -4], [-1e3, 1e3, -4]] }}
+
+[[lights]]
+name = "beam"
+shape = {{ type = "quad", corners = [[-0.001, -0.001, {light_z}], [-0.001, 0.001, {light_z}], [0.001, 0.001, {light_z}], [0.001, -0.001, {light_z}]] }}
+distribution = "collimated"
+power_w = 1
+"#
+    )
+}
+
+#[test]
+fn nested_media_book_each_stretch_to_the_medium_it_crosses() {
+    // A beam down the axis crosses 1 cm of outer, 1 cm of inner, 1 cm of outer: with
+    // expected-value absorption every share is exact (Beer–Lambert, no randomness while the
+    // weight stays above the roulette's 0.1: it ends at e^{−2.2} = 0.11):
+    //   outer: (1 − e⁻¹) + e^{−2.2}(1 − e⁻¹),  inner: e⁻¹(1 − e^{−1.2}),  below: e^{−3.2}.
+    // From a beam inside the inner box (0.5 cm above its floor): inner 1 − e^{−0.6},
+    // outer e^{−0.6}(1 − e⁻¹), below e^{−1.6} (the light emits into the innermost medium).
+    // The outer medium fills its box less the inner one: 48 − 4 = 44 cm³ (to f32 rounding).
+    let e = |x: f64| (-x).exp();
+    for (light_z, want_outer, want_inner, want_below) in [
+        (0.1, (1.0 - e(1.0)) + e(2.2) * (1.0 - e(1.0)), e(1.0) * (1.0 - e(1.2)), e(3.2)),
+        (-1.5, e(0.6) * (1.0 - e(1.0)), 1.0 - e(0.6), e(1.6)),
+    ] {
+        let (s, r) = simulate(&nested_boxes(light_z), 2000, 3, common::EXPECTED);
+        let f = photon::output::flux(&s, &r);
+        assert!(f.ledger.relative_residual() < 1e-12 && f.ledger.escaped_w == 0.0, "{:?}", f.ledger);
+        let medium = |n: &str| f.media.iter().find(|m| m.name == n).unwrap();
+        // To 10⁻⁶: the path lengths are the f32 tracer's.
+        assert!((medium("outer").absorbed_w - want_outer).abs() < 1e-6, "beam at {light_z}: {:?}", medium("outer"));
+        assert!(
+            (medium("inner").absorbed_w - want_inner).abs() < 1e-6,
+            "beam at {light_z}: {:?} against {want_inner}",
+            medium("inner")
+        );
+        assert!((surface(&f, "below").absorbed_w - want_below).abs() < 1e-6, "beam at {light_z}");
+        assert!((medium("outer").volume_m3 / 44e-6 - 1.0).abs() < 1e-6, "{:?}", medium("outer"));
+        assert!((medium("inner").volume_m3 / 4e-6 - 1.0).abs() < 1e-6, "{:?}", medium("inner"));
+    }
+}
+
+#[test]
+fn the_mcml_slab_inside_a_clear_dielectric_matches_van_de_hulst() {
+    // The MCML tissue slab nested in an index-matched clear box (no medium): a photon leaving
+    // the slab is inside the box, not in the world, and nothing changes: R_d 0.09739, T_t 0.66096.
+    let toml = slab(MCML_TISSUE, 0.02, 1.0, 2.0)
+        .replace("ior = 1\noutside_ior = 1.0\nmedium = \"tissue\"", "ior = 1\noutside_ior = 1.0\nmedium = \"tissue\"")
+        .replace(
+            "[[surfaces]]\nname = \"above\"",
+            "[materials.clear]\ntype = \"dielectric\"\nior = 1.0\n\n[[surfaces]]\nname = \"case\"\nmaterial = \"clear\"\n\
+             shape = { type = \"box\", min = [-3, -3, -0.5], max = [3, 3, 0.05] }\n\n[[surfaces]]\nname = \"above\"",
+        );
+    assert!(toml.contains("name = \"case\""));
+    let (s, r) = simulate(&toml, 200_000, 21, common::EXPECTED);
+    assert_eq!(s.surface_outside[s.surfaces.iter().position(|x| x.name == "slab").unwrap()], Some(1));
+    let (rd, tt) = reflectance_transmittance(&photon::output::flux(&s, &r));
+    assert_near("nested MCML R_d", rd, 0.09739);
+    assert_near("nested MCML T_t", tt, 0.66096);
+}
+
+#[test]
+fn glass_in_water_transmits_what_the_incoherent_stack_of_four_interfaces_does() {
+    // A glass plate (n 1.5, 1 cm) nested in a water box (n 1.33, 3 cm), a normal beam: every
+    // reflection stays on the axis, so transmittance is that of the incoherent stack
+    // air|water|glass|water|air. Interfaces combine as R = R₁ + T₁²R₂/(1 − R₁R₂),
+    // T = T₁T₂/(1 − R₁R₂) (lossless, symmetric), with Fresnel R = ((n₁ − n₂)/(n₁ + n₂))².
+    // Analog transport: each photon either passes or not, so s.e. = √(T(1 − T)/N) (z < 4).
+    let fresnel = |a: f64, b: f64| ((a - b) / (a + b)).powi(2);
+    let combine = |(r1, t1): (f64, f64), (r2, t2): (f64, f64)| {
+        let d = 1.0 - r1 * r2;
+        (r1 + t1 * t1 * r2 / d, t1 * t2 / d)
+    };
+    let iface = |a: f64, b: f64| (fresnel(a, b), 1.0 - fresnel(a, b));
+    let stack =
+        [iface(1.0, 1.33), iface(1.33, 1.5), iface(1.5, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
+    let toml = r#"[scene]
+unit = "cm"
+
+[materials.water]
+type = "dielectric"
+ior = 1.33
+
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+outside_ior = 1.33
+
+[[surfaces]]
+name = "water"
+material = "water"
+shape = { type = "box", min = [-3, -3, -3], max = [3, 3, 0] }
+
+[[surfaces]]
+name = "glass"
+material = "glass"
+shape = { type = "box", min = [-2, -2, -2], max = [2, 2, -1] }
+
+[[surfaces]]
+name = "below"
+material = "absorber"
+shape = { type = "quad", corners = [[-1e3, -1e3, -4], [1e3, -1e3, -4], [1e3, 1e3, -4], [-1e3, 1e3, -4]] }
+
+[[lights]]
+name = "beam"
+shape = { type = "quad", corners = [[-0.001, -0.001, 0.1], [-0.001, 0.001, 0.1], [0.001, 0.001, 0.1], [0.001, -0.001, 0.1]] }
+distribution = "collimated"
+power_w = 1
+"#;
+    let n = 400_000;
+    let (s, r) = simulate(toml, n, 8, common::ANALOG);
+    let f = photon::output::flux(&s, &r);
+    assert!(f.ledger.relative_residual() < 1e-12, "{:?}", f.ledger);
+    let t = surface(&f, "below").absorbed_w;
+    let se = (stack.1 * (1.0 - stack.1) / n as f64).sqrt();
+    println!("glass in water: T = {t:.5} against the stack's {:.5} (s.e. {se:.1e})", stack.1);
+    common::assert_z("glass-in-water transmittance", t, stack.1, se, 4.0);
+    // And the same glass declared as if in air is refused (its outside is the water).
+    let air = toml.replace("outside_ior = 1.33\n", "");
+    let err =
+        photon::scene::load_str(std::path::Path::new("tests/inline.toml"), &air).err().expect("refused").to_string();
+    assert!(err.contains("needs outside_ior equal to the ior of material \"water\""), "{err}");
+}
+
+#[test]
+fn media_declared_unlike_the_geometry_are_refused_naming_the_surface() {
+    // Each edit of the nested boxes makes the declaration disagree with where the inner box is.
+    let cases = [
+        // The inner box sits in the outer medium but says nothing of it.
+        (
+            "outside_medium = \"outer\"\n",
+            "",
+            "which is filled with medium \"outer\", but material \"inner\" has outside_medium none",
+        ),
+        // It names a medium that is not around it.
+        ("outside_medium = \"outer\"", "outside_medium = \"inner\"", "has outside_medium \"inner\""),
+        // The outer box says it sits in a medium, but it is in the world.
+        (
+            "ior = 1.0\nmedium = \"outer\"",
+            "ior = 1.0\nmedium = \"outer\"\noutside_medium = \"inner\"",
+            "lies in no other dielectric",
+        ),
+    ];
+    for (from, to, message) in cases {
+        let toml = nested_boxes(0.1);
+        assert_eq!(toml.matches(from).count(), 1, "{from}");
+        let bad = toml.replacen(from, to, 1);
+        let err = photon::scene::load_str(std::path::Path::new("tests/inline.toml"), &bad)
+            .err()
+            .expect("refused")
+            .to_string();
+        assert!(err.contains(message) && err.contains("surfaces["), "{err}");
+    }
+}

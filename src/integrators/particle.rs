@@ -534,7 +534,7 @@ impl Kernel<'_> {
                 }
                 scatterings += 1;
                 if is_dielectric {
-                    medium = media::after_crossing(surface, n, new_dir);
+                    medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
                 }
                 origin = geo.spawn(p, err, hit.prim, new_dir);
                 if DIELECTRIC {

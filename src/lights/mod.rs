@@ -380,8 +380,8 @@ fn direction(d: Distribution, n: Vec3A, u1: f32, u2: f32) -> Vec3A {
 
 /// The dielectric enclosing each emitting point of a light, by parity: a ray from a point just
 /// in front of it crosses a closed surface an odd number of times only if the point is inside.
-/// Area lights are judged triangle by triangle (a lamp may straddle a water surface). Nested
-/// dielectrics are not supported, so the first enclosing one is taken.
+/// Area lights are judged triangle by triangle (a lamp may straddle a water surface). Of nested
+/// dielectrics the innermost is taken.
 fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
     let geo = &scene.geometry;
     match origin {
@@ -406,13 +406,24 @@ fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
     }
 }
 
-/// The dielectric surface that `start` lies inside, if any (ray parity; `skip` is the triangle
-/// the point sits on).
+/// The innermost dielectric surface that `start` lies inside, if any (ray parity; `skip` is the
+/// triangle the point sits on): of those around it, the one nested deepest
+/// (`Scene::surface_outside`).
 fn enclosing_dielectric(scene: &Scene, start: Vec3A, skip: u32) -> Option<u32> {
     let crossings = scene.geometry.crossings(start, skip, scene.surfaces.len());
-    (0..scene.surfaces.len())
-        .find(|&s| crossings[s] % 2 == 1 && matches!(scene.material_of(s), crate::scene::Material::Dielectric { .. }))
-        .map(|s| s as u32)
+    let depth = |mut s: u32| {
+        let mut d = 0;
+        while let Some(o) = scene.surface_outside[s as usize] {
+            (s, d) = (o, d + 1);
+        }
+        d
+    };
+    (0..scene.surfaces.len() as u32)
+        .filter(|&s| {
+            crossings[s as usize] % 2 == 1
+                && matches!(scene.material_of(s as usize), crate::scene::Material::Dielectric { .. })
+        })
+        .max_by_key(|&s| depth(s))
 }
 
 #[cfg(test)]

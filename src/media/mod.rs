@@ -28,10 +28,15 @@ pub fn transmittance<const SPECTRAL: bool, const N: usize>(alpha: &Spectrum, lam
 }
 
 /// The medium after a path scattered at dielectric `surface` (unit normal `n`) into unit `wi`:
-/// the dielectric's interior, opposite the normal, or outside (None).
+/// the dielectric's interior, opposite the normal, or what is outside it (`Scene::surface_outside`:
+/// the dielectric it is nested in, or None for the world).
 #[inline]
-pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A) -> Option<u32> {
-    (wi.dot(n) < 0.0).then_some(surface)
+pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A, outside: &[Option<u32>]) -> Option<u32> {
+    if wi.dot(n) < 0.0 {
+        Some(surface)
+    } else {
+        outside[surface as usize]
+    }
 }
 
 /// A free-flight distance in a medium of extinction μt (per m): −ln(1 − u)/μt, exponential with

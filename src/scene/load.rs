@@ -143,6 +143,22 @@ enum PowerSpec {
     Radiance(Spectrum),
 }
 
+/// A dielectric material's `medium` and `outside_medium` (indices into `[media]`), and the
+/// line of `outside_medium` for messages.
+#[derive(Clone, Copy, Debug, Default)]
+struct MediumSides {
+    inside: Option<u32>,
+    outside: Option<u32>,
+    outside_line: usize,
+}
+
+/// What `check_dielectrics` finds: each surface's enclosed volume (m³; 0 but for dielectrics)
+/// and, for a dielectric nested in another, the one directly around it.
+struct Dielectrics {
+    volume: Vec<f64>,
+    outside: Vec<Option<u32>>,
+}
+
 /// One surface or area light triangulated in metres (f64), before recentring.
 struct Shaped {
     name: String,
@@ -224,7 +240,7 @@ impl<'s> Loader<'s> {
         let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
-        let surface_medium: Vec<Option<u32>> = surfaces.iter().map(|s| material_medium[s.material]).collect();
+        let surface_medium: Vec<Option<u32>> = surfaces.iter().map(|s| material_medium[s.material].inside).collect();
         let mut effects = effects_in_use(&materials, &surfaces, range, camera.is_some());
         for m in surface_medium.iter().flatten().map(|&m| &media[m as usize]) {
             let positive = |s: &Spectrum| s.min_max_over(range).1 > 0.0;
@@ -264,11 +280,24 @@ impl<'s> Loader<'s> {
         let geometry = Geometry::build_with_tangents(tris, tri_surface, tri_tangent)
             .map_err(|m| InputError::new(self.src.file, "", None, m))?;
         let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
-        let volumes =
-            self.check_dielectrics(&geometry, &surfaces, &materials, &surface_keys, camera.as_ref(), camera_line)?;
+        let sides: Vec<&MediumSides> = surfaces.iter().map(|s| &material_medium[s.material]).collect();
+        let Dielectrics { volume, outside: surface_outside } = self.check_dielectrics(
+            &geometry,
+            &surfaces,
+            &materials,
+            &surface_keys,
+            &sides,
+            &media,
+            camera.as_ref(),
+            camera_line,
+        )?;
+        // A medium fills its dielectrics less the dielectrics nested in them.
         for (s, m) in surface_medium.iter().enumerate() {
             if let Some(m) = m {
-                media[*m as usize].volume_m3 += volumes[s];
+                media[*m as usize].volume_m3 += volume[s];
+            }
+            if let Some(m) = surface_outside[s].and_then(|o| surface_medium[o as usize]) {
+                media[m as usize].volume_m3 -= volume[s];
             }
         }
         Ok(Scene {
@@ -281,6 +310,7 @@ impl<'s> Loader<'s> {
             geometry,
             media,
             surface_medium,
+            surface_outside,
             effects,
             detectors,
             warnings,
@@ -290,25 +320,24 @@ impl<'s> Loader<'s> {
         })
     }
 
-    /// `[materials]`: the built-in absorber at index 0, then each material in file order, and
-    /// the index of each name.
     /// `[materials]`: the built-in absorber at index 0, then each material in file order, the
-    /// index of each name, and per material the medium filling it (a dielectric's `medium`).
+    /// index of each name, and per material the media on its two sides (a dielectric's `medium`
+    /// and `outside_medium`).
     #[allow(clippy::type_complexity)]
     fn materials(
         &self,
         root: Table<'s, '_>,
         range: (f64, f64),
         media: &[Medium],
-    ) -> R<(Vec<NamedMaterial>, HashMap<String, usize>, Vec<Option<u32>>)> {
+    ) -> R<(Vec<NamedMaterial>, HashMap<String, usize>, Vec<MediumSides>)> {
         let mut materials = vec![NamedMaterial { name: "absorber".into(), material: Material::Absorber }];
         let mut material_index: HashMap<String, usize> = HashMap::from([("absorber".to_string(), 0)]);
-        let mut material_medium = vec![None];
+        let mut material_medium = vec![MediumSides::default()];
         root.with("materials", |n| {
             let t = n.table()?;
             for key in t.keys() {
                 let m = t.require(key, |n| self.material(n, range))?;
-                let medium = t.require(key, |n| self.material_medium(n.table()?, media))?;
+                let medium = t.require(key, |n| self.material_media(n.table()?, media))?;
                 if key == "absorber" {
                     // A user's own "absorber" replaces the built-in one.
                     materials[0].material = m;
@@ -323,37 +352,36 @@ impl<'s> Loader<'s> {
         Ok((materials, material_index, material_medium))
     }
 
-    /// A dielectric's `medium = "NAME"`: the `[media]` entry filling its inside.
-    fn material_medium(&self, t: Table<'s, '_>, media: &[Medium]) -> R<Option<u32>> {
-        if t.has("outside_medium") {
-            return Err(t.err_at(
-                "outside_medium",
-                "outside_medium is not supported yet: a dielectric borders the world outside every medium \
-                 (nested and adjacent media are still to come)",
-            ));
-        }
-        let Some(name) = t.str("medium")? else { return Ok(None) };
-        if t.has("absorption_per_m") {
+    /// A dielectric's `medium = "NAME"` and `outside_medium = "NAME"`: the `[media]` entries
+    /// filling its inside and around it (where it sits inside another dielectric's medium).
+    fn material_media(&self, t: Table<'s, '_>, media: &[Medium]) -> R<MediumSides> {
+        let find = |key: &str| -> R<Option<u32>> {
+            let Some(name) = t.str(key)? else { return Ok(None) };
+            match media.iter().position(|m| m.name == name) {
+                Some(i) => Ok(Some(i as u32)),
+                None => {
+                    let known: Vec<&str> = media.iter().map(|m| m.name.as_str()).collect();
+                    Err(t.err_at(
+                        key,
+                        if known.is_empty() {
+                            format!("unknown medium \"{name}\": the file has no [media] entries")
+                        } else {
+                            format!("unknown medium \"{name}\"; the [media] entries are: {}", known.join(", "))
+                        },
+                    ))
+                }
+            }
+        };
+        let inside = find("medium")?;
+        if inside.is_some() && t.has("absorption_per_m") {
             return Err(t.err_at(
                 "medium",
                 "give either medium or absorption_per_m, not both: absorption_per_m is shorthand for a purely \
                  absorbing medium, so put the absorption in the [media] entry",
             ));
         }
-        match media.iter().position(|m| m.name == name) {
-            Some(i) => Ok(Some(i as u32)),
-            None => {
-                let known: Vec<&str> = media.iter().map(|m| m.name.as_str()).collect();
-                Err(t.err_at(
-                    "medium",
-                    if known.is_empty() {
-                        format!("unknown medium \"{name}\": the file has no [media] entries")
-                    } else {
-                        format!("unknown medium \"{name}\"; the [media] entries are: {}", known.join(", "))
-                    },
-                ))
-            }
-        }
+        let outside = find("outside_medium")?;
+        Ok(MediumSides { inside, outside, outside_line: t.line_of_key("outside_medium") })
     }
 
     /// `[media]`: each homogeneous medium, μa and μs (spectra, per metre), its phase function and
@@ -1047,24 +1075,29 @@ impl<'s> Loader<'s> {
     }
 
     /// A dielectric has an inside (the side its normals point away from), so it must be a closed,
-    /// consistently oriented surface with outward normals, inside no other dielectric, and the
-    /// camera must be outside them all (camera paths start in air): each is checked here, where
-    /// the README's promise can be kept, rather than misjudged photons later. Returns each
-    /// surface's enclosed volume (m³; 0 but for dielectrics).
+    /// consistently oriented surface with outward normals; one inside another (nested) must say
+    /// so (its `outside_ior` the other's `ior`, its `outside_medium` the other's `medium`); no two
+    /// share a face; and the camera must be outside them all (camera paths start in air): each
+    /// is checked here, where the README's promise can be kept, rather than misjudged photons
+    /// later.
+    #[allow(clippy::too_many_arguments)]
     fn check_dielectrics(
         &self,
         geo: &Geometry,
         surfaces: &[Surface],
         materials: &[NamedMaterial],
         keys: &[(String, usize)],
+        sides: &[&MediumSides],
+        media: &[Medium],
         camera: Option<&Camera>,
         camera_line: usize,
-    ) -> R<Vec<f64>> {
+    ) -> R<Dielectrics> {
         let is_dielectric = |s: usize| matches!(materials[surfaces[s].material].material, Material::Dielectric { .. });
         let dielectrics: Vec<usize> = (0..surfaces.len()).filter(|&s| is_dielectric(s)).collect();
         let mut volume = vec![0.0f64; surfaces.len()];
+        let mut outside = vec![None; surfaces.len()];
         if dielectrics.is_empty() {
-            return Ok(volume);
+            return Ok(Dielectrics { volume, outside });
         }
         let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
         // Edges by their end points' exact f32 bits: each must be used twice, once each way.
@@ -1123,24 +1156,119 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        let inside = |point: Vec3A, skip: u32, not: usize| -> Option<usize> {
-            let crossings = geo.crossings(point, skip, surfaces.len());
-            dielectrics.iter().copied().find(|&d| d != not && crossings[d] % 2 == 1)
-        };
+        // Two dielectrics sharing a face (adjacent volumes) meet at coincident triangles, and which
+        // one a ray hits there is arbitrary: a short ray through each dielectric triangle's
+        // centroid, along its normal, finds another dielectric's triangle within the
+        // centroid's own rounding distance of its plane.
+        if dielectrics.len() > 1 {
+            for prim in 0..geo.len() {
+                let s = geo.surface_of(prim) as usize;
+                if !is_dielectric(s) {
+                    continue;
+                }
+                let (c, err) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim: prim as u32, b: [1.0 / 3.0; 3] });
+                let n = geo.normal(prim);
+                let reach = 4.0 * (n.abs().dot(err + c.abs() * f32::EPSILON) + f32::MIN_POSITIVE);
+                let hit = geo.intersect(c - n * reach, n, 2.0 * reach, prim as u32);
+                if let Some(other) =
+                    hit.map(|h| geo.surface_of(h.prim as usize) as usize).filter(|&o| o != s && is_dielectric(o))
+                {
+                    return Err(fail(
+                        s,
+                        format!(
+                            "dielectric surfaces \"{}\" and \"{}\" share a face; adjacent dielectrics are not supported \
+                             yet: nest one inside the other, clear of its faces",
+                            surfaces[other].name, surfaces[s].name
+                        ),
+                    ));
+                }
+            }
+        }
+        // The dielectrics around each one's first triangle, by ray parity (one probe point per
+        // surface: it finds nesting, not every partial overlap).
+        let around: Vec<Vec<usize>> = (0..surfaces.len())
+            .map(|s| {
+                if !is_dielectric(s) {
+                    return Vec::new();
+                }
+                let prim = first_prim[s];
+                let (p, _) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b: [1.0 / 3.0; 3] });
+                let crossings = geo.crossings(p, prim, surfaces.len());
+                dielectrics.iter().copied().filter(|&d| d != s && crossings[d] % 2 == 1).collect()
+            })
+            .collect();
         for &s in &dielectrics {
-            let prim = first_prim[s];
-            let (p, _) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b: [1.0 / 3.0; 3] });
-            if let Some(outer) = inside(p, prim, s) {
+            // Directly around s: the deepest of those around it, whose own surroundings must be
+            // the rest (else the two cross).
+            let Some(&parent) = around[s].iter().max_by_key(|&&d| around[d].len()) else { continue };
+            let name = |d: usize| &surfaces[d].name;
+            if around[parent].len() + 1 != around[s].len()
+                || around[s].iter().any(|&d| d != parent && !around[parent].contains(&d))
+            {
                 return Err(fail(
                     s,
                     format!(
-                        "dielectric surface \"{}\" lies inside (or crosses) dielectric \"{}\": nested dielectrics \
-                         are not supported",
-                        surfaces[s].name, surfaces[outer].name
+                        "dielectric surface \"{}\" crosses dielectric \"{}\": dielectrics may nest but not overlap",
+                        name(s),
+                        name(parent)
+                    ),
+                ));
+            }
+            let (Material::Dielectric { outside_ior, .. }, Material::Dielectric { ior: parent_ior, .. }) =
+                (&materials[surfaces[s].material].material, &materials[surfaces[parent].material].material)
+            else {
+                unreachable!("both are dielectrics")
+            };
+            let material = &materials[surfaces[s].material].name;
+            if outside_ior != parent_ior {
+                return Err(fail(
+                    s,
+                    format!(
+                        "dielectric surface \"{}\" lies inside dielectric \"{}\", so its outside is that one's inside: \
+                         material \"{material}\" needs outside_ior equal to the ior of material \"{}\"",
+                        name(s),
+                        name(parent),
+                        materials[surfaces[parent].material].name
+                    ),
+                ));
+            }
+            if sides[s].outside != sides[parent].inside {
+                let medium =
+                    |m: Option<u32>| m.map_or("none".to_string(), |m| format!("\"{}\"", media[m as usize].name));
+                return Err(fail(
+                    s,
+                    format!(
+                        "dielectric surface \"{}\" lies inside dielectric \"{}\", which is filled with medium {}, but \
+                         material \"{material}\" has outside_medium {}: the media on a boundary's two sides must be \
+                         declared as they are",
+                        name(s),
+                        name(parent),
+                        medium(sides[parent].inside),
+                        medium(sides[s].outside)
+                    ),
+                ));
+            }
+            outside[s] = Some(parent as u32);
+        }
+        for &s in &dielectrics {
+            if let (None, Some(m)) = (outside[s], sides[s].outside) {
+                return Err(fail(
+                    s,
+                    format!(
+                        "material \"{}\" (line {}) has outside_medium \"{}\", but dielectric surface \"{}\" lies in \
+                         no other dielectric: its outside is the world, with no medium",
+                        materials[surfaces[s].material].name,
+                        sides[s].outside_line,
+                        media[m as usize].name,
+                        surfaces[s].name
                     ),
                 ));
             }
         }
+        let inside = |point: Vec3A, skip: u32, not: usize| -> Option<usize> {
+            let crossings = geo.crossings(point, skip, surfaces.len());
+            dielectrics.iter().copied().find(|&d| d != not && crossings[d] % 2 == 1)
+        };
         if let Some(c) = camera {
             if let Some(d) = inside(c.position.as_vec3a(), crate::geometry::NO_PRIM, usize::MAX) {
                 return Err(InputError::new(
@@ -1155,7 +1283,7 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        Ok(volume)
+        Ok(Dielectrics { volume, outside })
     }
 
     /// Scales a shape's triangles to metres. Coordinates too far out for the BVH's f32 bounds

@@ -388,6 +388,9 @@ pub struct Scene {
     /// Participating media (`[media]`), and per surface the one filling a dielectric's inside.
     pub media: Vec<Medium>,
     pub surface_medium: Vec<Option<u32>>,
+    /// Per dielectric surface nested in another, that one (directly around it): where a path
+    /// that leaves it is. None for the others (their outside is the world).
+    pub surface_outside: Vec<Option<u32>>,
     pub effects: Effects,
     /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
     pub detectors: Vec<farfield::FarField>,

@@ -295,7 +295,7 @@ impl ImageKernel<'_> {
             path[index - 1].pdf_rev = to_area(pdf_rev, p, &path[index - 1]);
             pdf_dir = pdf_fwd;
             if is_dielectric {
-                medium = media::after_crossing(surface, n, new_dir);
+                medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -437,7 +437,11 @@ impl ImageKernel<'_> {
             // A visible segment crosses no dielectric boundary, so it lies in the medium on the
             // camera vertex's side toward the light vertex (beyond the boundary when the camera
             // vertex sits on a rough dielectric); Beer–Lambert applies to it as to the sampled segments.
-            let medium = if pt.on_dielectric { media::after_crossing(pt.surface, pt.n, -w) } else { pt.medium };
+            let medium = if pt.on_dielectric {
+                media::after_crossing(pt.surface, pt.n, -w, &self.scene.surface_outside)
+            } else {
+                pt.medium
+            };
             if let Some(t) = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {
                 c *= t;
             }

@@ -103,7 +103,7 @@ impl ImageKernel<'_> {
             bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
             let new_dir = sampled.wi;
             if is_dielectric {
-                medium = media::after_crossing(surface, n, new_dir);
+                medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -163,7 +163,8 @@ impl ImageKernel<'_> {
             * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
         // A visible light lies in the medium on `wi`'s side: the vertex's own, or beyond the
         // dielectric boundary it sits on (`crossing`). Beer–Lambert over the shadow segment.
-        let medium = crossing.map_or(medium, |surface| media::after_crossing(surface, n, wi));
+        let medium =
+            crossing.map_or(medium, |surface| media::after_crossing(surface, n, wi, &self.scene.surface_outside));
         let absorbed = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl));
         acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * absorbed.unwrap_or(Lanes::ONE));
     }
