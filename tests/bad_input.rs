@@ -1437,3 +1437,40 @@ fn a_point_light_has_no_spectrum_to_tally() {
         &[&at(line, "lights[1].spectrum_bins"), "a point light is not a surface"],
     );
 }
+
+#[test]
+fn bad_volume_detectors() {
+    // Each: the detector's body, the line's text, the key path, the message.
+    let cases = [
+        ("min = [0, 0, 0]\nmax = [1, 0, 1]\nresolution = [2, 2, 2]", "max =", "detectors[0].max", "must exceed min's"),
+        (
+            "min = [0, 0, 0]\nmax = [1, 1, 1]\nresolution = [2, 2]",
+            "resolution",
+            "detectors[0].resolution",
+            "expected [nx, ny, nz]",
+        ),
+        (
+            "min = [0, 0, 0]\nmax = [1, 1, 1]\nresolution = [1024, 1024, 8]",
+            "resolution",
+            "detectors[0].resolution",
+            "too many",
+        ),
+        ("min = [0, 0, 0]\nresolution = [2, 2, 2]", "[[detectors]]", "detectors[0].max", "missing required key `max`"),
+        (
+            "min = [0, 0, 0]\nmax = [1, 1, 1]\nresolution = [2, 2, 2]\nnadir = [0, 0, 1]",
+            "nadir",
+            "detectors[0].nadir",
+            "unknown key `nadir`",
+        ),
+    ];
+    for (k, (body, needle, key, message)) in cases.into_iter().enumerate() {
+        let toml = format!("{BASE}\n[[detectors]]\ntype = \"volume\"\n{body}\n");
+        let line = line_of(&toml, needle);
+        expect_bad(&format!("volume-{k}"), &toml, &[], &[&at(line, key), message]);
+    }
+    let two = format!(
+        "{BASE}\n[[detectors]]\ntype = \"volume\"\nname = \"a b\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nresolution = [1, 1, 1]\n\
+         \n[[detectors]]\ntype = \"volume\"\nname = \"a_b\"\nmin = [0, 0, 0]\nmax = [1, 1, 1]\nresolution = [1, 1, 1]\n"
+    );
+    expect_bad("volume-names", &two, &[], &["would both write volume_a_b.npy"]);
+}

@@ -657,6 +657,7 @@ const TOML_TABLES: &[&str] = &[
     "[camera]\nposition = [0, 0, 1e15]\nlook_at = [0, 0, 0]\nfov_deg = 1e-9\nresolution = [RES]\n",
     "[camera]\nposition = [0.5, -5, 0.5]\nlook_at = [0.5, -6, 0.5]\nup = [0, 0, 1]\nfov_deg = 179.9\nresolution = [RES]\n",
     "[[detectors]]\ntype = \"farfield\"\nname = \"ff\"\nresolution = [RES]\n",
+    "[[detectors]]\ntype = \"volume\"\nname = \"vol\"\nmin = [-1e-30, 0, 0]\nmax = [1e-30, 1e15, 1]\nresolution = [3, 1, 1024]\n",
     "[[detectors]]\ntype = \"farfield\"\nname = \"ff2\"\nresolution = [2, 3]\nnadir = [1e-300, 0, 1e-300]\nc0 = [1, 1e-300, 0]\n",
     "[simulation]\nintegrator = \"bdpt\"\n",
     "[[lights]]\nname = \"p\"\nshape = { type = \"point\", position = [0.5, 0.5, 0.5] }\ndirection = [0, -1, 0]\ndistribution = { ies = \"luminaires/cosine.ies\" }\n",

@@ -57,6 +57,12 @@ impl HistoryScores {
         }
     }
 
+    /// This history's score so far in `slot`.
+    #[inline]
+    pub fn value(&self, slot: u32) -> f64 {
+        self.value[slot as usize]
+    }
+
     /// As `new`, also keeping each score's lumens at the efficacy current when it was added.
     pub fn with_luminous(surfaces: usize) -> Self {
         HistoryScores { luminous: vec![0.0; surfaces], ..HistoryScores::new(surfaces) }
@@ -166,6 +172,10 @@ pub struct Tallies {
     pub spectra_absorbed: Channel,
     /// Weight re-emitted by each medium's luminophore (a row per medium; empty without media).
     pub reemitted: Channel,
+    /// Per voxel of the volume detectors: weight absorbed there, and weight × path length (m)
+    /// inside it (the track-length estimator of fluence).
+    pub volume_absorbed: Channel,
+    pub volume_track: Channel,
     /// Weight that left the scene, and weight still in flight at the bounce cap.
     pub escaped: f64,
     pub truncated: f64,
@@ -237,6 +247,8 @@ impl Tallies {
         t.spectra = Channel::new(scene.spectrum_bins());
         t.spectra_absorbed = Channel::new(scene.spectrum_bins());
         t.reemitted = Channel::new(scene.media.len());
+        t.volume_absorbed = Channel::new(scene.volume_voxels());
+        t.volume_track = Channel::new(scene.volume_voxels());
         t
     }
 
@@ -254,6 +266,8 @@ impl Tallies {
             spectra: Channel::new(0),
             spectra_absorbed: Channel::new(0),
             reemitted: Channel::new(0),
+            volume_absorbed: Channel::new(0),
+            volume_track: Channel::new(0),
             escaped: 0.0,
             truncated: 0.0,
             scatterings: 0,
@@ -277,6 +291,8 @@ impl Tallies {
             (&mut self.spectra, &b.spectra),
             (&mut self.spectra_absorbed, &b.spectra_absorbed),
             (&mut self.reemitted, &b.reemitted),
+            (&mut self.volume_absorbed, &b.volume_absorbed),
+            (&mut self.volume_track, &b.volume_track),
         ] {
             a.merge(x, b.photons);
         }

@@ -254,6 +254,11 @@ impl Kernel<'_> {
                 }
             };
         let (range_lo, range_width) = (range.0, range.1 - range.0);
+        // Volume detectors: track lengths and deposits per voxel, off unless asked for.
+        let volumes = &scene.volumes;
+        let has_volumes = !volumes.is_empty();
+        let mut volume_track = HistoryScores::new(scene.volume_voxels());
+        let mut volume_absorbed = HistoryScores::new(scene.volume_voxels());
 
         for photon in 0..count as u32 {
             if crate::integrators::batch::cancelled(self.cancel, photon as u64) {
@@ -334,76 +339,106 @@ impl Kernel<'_> {
                         // A collision needs the boundary ahead (with none, the photon has left).
                         if let Some(h) = next.filter(|h| t < h.t as f64 + head_start) {
                             let row = (n_surfaces + v as usize) as u32;
-                            // The medium's own absorption first; what survives is scattered or
-                            // taken by the luminophore.
-                            let albedo = (mu_s + mu_f) / mu_t;
-                            let expected_here = EXPECTED && weight >= ROULETTE_WEIGHT;
-                            if expected_here {
-                                absorb(row, weight * (1.0 - albedo), lambda, &mut absorbed, &mut spectra_absorbed);
-                                weight *= albedo;
-                            } else if !(s.uniform() < albedo) {
-                                absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
-                                break;
-                            }
-                            if scatterings == max_bounces {
-                                out.truncated += weight;
-                                break;
-                            }
-                            scatterings += 1;
+                            let (seg_origin, seg_dir, seg_start) = (origin, dir, head_start);
                             // Within the head start the collision is at the origin (a shift of at
                             // most the error bound), which is safely inside.
-                            if t >= head_start {
-                                origin = collision_point(geo, &h, dir, h.t as f64 + head_start - t);
-                            }
-                            head_start = 0.0;
-                            skip = NO_PRIM;
-                            let luminophore = match &med.fluorescence {
-                                Some(f)
-                                    if mu_f > 0.0
-                                        && media::fluorescence::luminophore_absorbs(mu_s, mu_f, s.uniform()) =>
-                                {
-                                    f
-                                }
-                                _ => {
-                                    out.counters.phase_samples += 1;
-                                    dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
-                                    continue;
-                                }
+                            let at = if t >= head_start {
+                                collision_point(geo, &h, dir, h.t as f64 + head_start - t)
+                            } else {
+                                origin
                             };
-                            // Absorbed by the luminophore: re-emitted with probability q (expected
-                            // value: the share 1 − q stays in the medium).
-                            let q = luminophore.quantum_yield;
-                            if expected_here {
-                                absorb(row, weight * (1.0 - q), lambda, &mut absorbed, &mut spectra_absorbed);
-                                weight *= q;
-                                if weight == 0.0 {
-                                    break;
+                            let (w_in, before) = (weight, absorbed.value(row));
+                            let alive = 'collision: {
+                                // The medium's own absorption first; what survives is scattered or
+                                // taken by the luminophore.
+                                let albedo = (mu_s + mu_f) / mu_t;
+                                let expected_here = EXPECTED && weight >= ROULETTE_WEIGHT;
+                                if expected_here {
+                                    absorb(row, weight * (1.0 - albedo), lambda, &mut absorbed, &mut spectra_absorbed);
+                                    weight *= albedo;
+                                } else if !(s.uniform() < albedo) {
+                                    absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                                    break 'collision false;
                                 }
-                            } else if !(s.uniform() < q) {
-                                absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
-                                break;
+                                if scatterings == max_bounces {
+                                    out.truncated += weight;
+                                    break 'collision false;
+                                }
+                                scatterings += 1;
+                                origin = at;
+                                head_start = 0.0;
+                                skip = NO_PRIM;
+                                let luminophore = match &med.fluorescence {
+                                    Some(f)
+                                        if mu_f > 0.0
+                                            && media::fluorescence::luminophore_absorbs(mu_s, mu_f, s.uniform()) =>
+                                    {
+                                        f
+                                    }
+                                    _ => {
+                                        out.counters.phase_samples += 1;
+                                        dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
+                                        break 'collision true;
+                                    }
+                                };
+                                // Absorbed by the luminophore: re-emitted with probability q (expected
+                                // value: the share 1 − q stays in the medium).
+                                let q = luminophore.quantum_yield;
+                                if expected_here {
+                                    absorb(row, weight * (1.0 - q), lambda, &mut absorbed, &mut spectra_absorbed);
+                                    weight *= q;
+                                    if weight == 0.0 {
+                                        break 'collision false;
+                                    }
+                                } else if !(s.uniform() < q) {
+                                    absorb(row, weight, lambda, &mut absorbed, &mut spectra_absorbed);
+                                    break 'collision false;
+                                }
+                                let (new_lambda, new_dir, energy) = media::fluorescence::reemit(
+                                    luminophore,
+                                    lambda,
+                                    s.uniform(),
+                                    s.uniform(),
+                                    s.uniform(),
+                                );
+                                // The Stokes loss (1 − λ/λ') of the weight is heat in the medium.
+                                absorb(row, weight * (1.0 - energy), lambda, &mut absorbed, &mut spectra_absorbed);
+                                weight *= energy;
+                                reemitted.add(v, weight);
+                                out.counters.reemissions += 1;
+                                lambda = new_lambda;
+                                xyz = self.emitter.colour(lambda);
+                                for h in [&mut incident, &mut absorbed, &mut texels, &mut farfield] {
+                                    h.set_efficacy(photometry::efficacy_at(lambda));
+                                }
+                                coefficients = None;
+                                dir = new_dir;
+                                break 'collision true;
+                            };
+                            if has_volumes {
+                                // The free flight's track, and what this collision deposited.
+                                let p = at.as_dvec3();
+                                let flight = (t - seg_start).max(0.0);
+                                let (o, d) = (seg_origin.as_dvec3(), seg_dir.as_dvec3());
+                                track(volumes, o, d, flight, w_in, 0.0, &mut volume_track, &mut volume_absorbed);
+                                if let Some(vx) = volumes.iter().find_map(|g| g.voxel_of(p)) {
+                                    volume_absorbed.add(vx as u32, absorbed.value(row) - before);
+                                }
                             }
-                            let (new_lambda, new_dir, energy) =
-                                media::fluorescence::reemit(luminophore, lambda, s.uniform(), s.uniform(), s.uniform());
-                            // The Stokes loss (1 − λ/λ') of the weight is heat in the medium.
-                            absorb(row, weight * (1.0 - energy), lambda, &mut absorbed, &mut spectra_absorbed);
-                            weight *= energy;
-                            reemitted.add(v, weight);
-                            out.counters.reemissions += 1;
-                            lambda = new_lambda;
-                            xyz = self.emitter.colour(lambda);
-                            for h in [&mut incident, &mut absorbed, &mut texels, &mut farfield] {
-                                h.set_efficacy(photometry::efficacy_at(lambda));
+                            if alive {
+                                continue;
                             }
-                            coefficients = None;
-                            dir = new_dir;
-                            continue;
+                            break;
                         }
                     } else if mu_a > 0.0 {
                         absorbing = Some((&med.absorption_per_m, (n_surfaces + v as usize) as u32));
                     }
                 }
                 let Some(hit) = next else {
+                    if has_volumes {
+                        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+                        track(volumes, o, d, f64::INFINITY, weight, 0.0, &mut volume_track, &mut volume_absorbed);
+                    }
                     out.escaped += weight;
                     for d in detectors {
                         farfield.add(d.bin_of(dir) as u32, weight);
@@ -423,6 +458,14 @@ impl Kernel<'_> {
                 // `absorption_per_m` to its surface.
                 if volume.is_none() {
                     absorbing = medium.and_then(|m| media::absorption(materials[m as usize]).map(|a| (a, m)));
+                }
+                if has_volumes {
+                    // The segment to the surface; across an absorbing medium its weight decays as
+                    // w·e^{−α s} from the surface it left (the head start already behind it).
+                    let alpha = absorbing.map_or(0.0, |(a, _)| a.eval(lambda));
+                    let w0 = if alpha > 0.0 { weight * (-alpha * head_start).exp() } else { weight };
+                    let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+                    track(volumes, o, d, hit.t as f64, w0, alpha, &mut volume_track, &mut volume_absorbed);
                 }
                 if let Some((alpha, row)) = absorbing {
                     let t = hit.t as f64 + head_start;
@@ -563,6 +606,10 @@ impl Kernel<'_> {
             if fluorescent {
                 reemitted.flush(&mut out.reemitted.moments);
             }
+            if has_volumes {
+                volume_track.flush(&mut out.volume_track.moments);
+                volume_absorbed.flush(&mut out.volume_absorbed.moments);
+            }
         }
         out.photons = count;
         out
@@ -674,6 +721,32 @@ impl Hero {
         (0..4).fold(Vec3A::ZERO, |acc, k| {
             acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] / d) as f32
         })
+    }
+}
+
+/// Books the segment o + s·d, s ∈ [0, len], carrying weight w·e^{−α s}, to the volume grids it
+/// crosses: Σ ∫w ds per voxel (track length) and, where α > 0, the weight it loses there.
+#[allow(clippy::too_many_arguments)]
+fn track(
+    grids: &[crate::scene::volume::VolumeGrid],
+    o: glam::DVec3,
+    d: glam::DVec3,
+    len: f64,
+    w: f64,
+    alpha: f64,
+    track: &mut HistoryScores,
+    absorbed: &mut HistoryScores,
+) {
+    for g in grids {
+        g.traverse(o, d, len, |voxel, a, b| {
+            if alpha > 0.0 {
+                let lost = w * ((-alpha * a).exp() - (-alpha * b).exp());
+                track.add(voxel as u32, lost / alpha);
+                absorbed.add(voxel as u32, lost);
+            } else {
+                track.add(voxel as u32, w * (b - a));
+            }
+        });
     }
 }
 

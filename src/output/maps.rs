@@ -85,7 +85,7 @@ pub fn write_exr(dir: &std::path::Path, m: &MapEstimate) -> Result<std::path::Pa
 }
 
 /// Viridis-like false colour for t in [0, 1] (matplotlib's viridis at 5 stops, linear between).
-fn false_colour(t: f64) -> plotters::style::RGBColor {
+pub(crate) fn false_colour(t: f64) -> plotters::style::RGBColor {
     const STOPS: [[f64; 3]; 5] =
         [[68.0, 1.0, 84.0], [59.0, 82.0, 139.0], [33.0, 145.0, 140.0], [94.0, 201.0, 98.0], [253.0, 231.0, 37.0]];
     let x = t.clamp(0.0, 1.0) * 4.0;

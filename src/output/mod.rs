@@ -4,6 +4,7 @@
 pub mod converge;
 pub mod farfield;
 pub mod maps;
+pub mod volume;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -458,6 +459,9 @@ pub fn run_file_names(scene: &Scene, image: bool) -> Vec<String> {
     for d in &scene.detectors {
         names.extend(["csv", "png"].map(|ext| crate::output::farfield::file_name(&d.name, ext)));
     }
+    for v in &scene.volumes {
+        names.extend(["npy", "png"].map(|ext| crate::output::volume::file_name(&v.name, ext)));
+    }
     names
 }
 
@@ -721,6 +725,10 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
         }
     }
     let farfields = crate::output::farfield::estimates(scene, r);
+    let volumes = crate::output::volume::estimates(scene, r);
+    if let Some(v) = volumes.iter().find(|v| !v.finite()) {
+        return Err(too_large(&format!("the volume detector \"{}\"", v.grid.name), ""));
+    }
     let mut files = Vec::new();
     let mut wrote = |p: PathBuf| files.push(p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().replace('\\', "/"));
     wrote(write_json(dir, "flux.json", &flux)?);
@@ -753,6 +761,10 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
     for e in &farfields {
         wrote(crate::output::farfield::write_csv(dir, e)?);
         wrote(crate::output::farfield::write_png(dir, e, &scene.stem())?);
+    }
+    for v in &volumes {
+        wrote(crate::output::volume::write_npy(dir, v)?);
+        wrote(crate::output::volume::write_png(dir, v, scene)?);
     }
     for p in write_spectra(dir, scene, r)? {
         wrote(p);

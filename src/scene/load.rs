@@ -27,6 +27,8 @@ const MAX_COORD_M: f64 = 1e15;
 const MAX_MAP_SIDE: u64 = 1024;
 /// Most wavelength bins of a surface's spectrum.
 const MAX_SPECTRUM_BINS: u64 = 10_000;
+/// Voxels of one volume detector.
+const MAX_VOXELS: u64 = 4_000_000;
 const MAX_PIXELS: u64 = 4096 * 4096;
 /// Largest power of a light, and of all lights together, in W: 2.6 million Suns. Below it the
 /// f64 tallies and their standard errors stay finite; the f32 images and maps are checked when
@@ -261,7 +263,7 @@ impl<'s> Loader<'s> {
                     .to_string(),
             );
         }
-        let detectors = self.detectors(root, origin_m)?;
+        let (detectors, volumes) = self.detectors(root, origin_m, unit_m)?;
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
@@ -313,6 +315,7 @@ impl<'s> Loader<'s> {
             surface_outside,
             effects,
             detectors,
+            volumes,
             warnings,
             reference,
             origin_m,
@@ -1717,15 +1720,28 @@ impl<'s> Loader<'s> {
 
     /// `[[detectors]]`: far-field detectors, `type = "farfield"`, `resolution = [n_gamma, n_c]`,
     /// optional `name`, `nadir` (default [0, 0, -1]) and `c0` (see `ies::Frame`).
-    fn detectors(&self, root: Table<'s, '_>, _origin_m: DVec3) -> R<Vec<crate::scene::farfield::FarField>> {
+    #[allow(clippy::type_complexity)]
+    fn detectors(
+        &self,
+        root: Table<'s, '_>,
+        origin_m: DVec3,
+        unit_m: f64,
+    ) -> R<(Vec<crate::scene::farfield::FarField>, Vec<crate::scene::volume::VolumeGrid>)> {
         let mut out: Vec<crate::scene::farfield::FarField> = Vec::new();
+        let mut volumes: Vec<crate::scene::volume::VolumeGrid> = Vec::new();
         root.with("detectors", |n| {
             n.each(|item| {
                 let t = item.table()?;
-                t.allow(&["type", "name", "resolution", "nadir", "c0"])?;
                 let kind = t.req_str("type")?;
+                if kind == "volume" {
+                    volumes.push(self.volume_detector(t, origin_m, unit_m, &volumes)?);
+                    return Ok(());
+                }
+                t.allow(&["type", "name", "resolution", "nadir", "c0"])?;
                 if kind != "farfield" {
-                    return Err(t.err_at("type", format!("unknown detector type \"{kind}\"; known: \"farfield\"")));
+                    return Err(
+                        t.err_at("type", format!("unknown detector type \"{kind}\"; known: \"farfield\", \"volume\""))
+                    );
                 }
                 let name = t.str("name")?.unwrap_or_else(|| format!("farfield{}", out.len()));
                 if out.iter().any(|d| d.name == name) {
@@ -1783,7 +1799,64 @@ impl<'s> Loader<'s> {
                 Ok(())
             })
         })?;
-        Ok(out)
+        Ok((out, volumes))
+    }
+
+    /// `type = "volume"`: `name`, `min`, `max` (the file's unit), `resolution = [nx, ny, nz]`.
+    fn volume_detector(
+        &self,
+        t: Table<'s, '_>,
+        origin_m: DVec3,
+        unit_m: f64,
+        earlier: &[crate::scene::volume::VolumeGrid],
+    ) -> R<crate::scene::volume::VolumeGrid> {
+        t.allow(&["type", "name", "min", "max", "resolution"])?;
+        let name = t.str("name")?.unwrap_or_else(|| format!("volume{}", earlier.len()));
+        let stem = crate::scene::map::file_stem(&name);
+        if stem.len() > MAX_NAME_BYTES {
+            return Err(t.err_at(
+                "name",
+                format!(
+                    "a name of {} bytes is too long: it names volume_<name>.npy; at most {MAX_NAME_BYTES}",
+                    name.len()
+                ),
+            ));
+        }
+        if let Some(d) = earlier.iter().find(|d| crate::scene::map::file_stem(&d.name) == stem) {
+            return Err(t.err_at(
+                "name",
+                format!(
+                    "volume detectors \"{}\" and \"{name}\" would both write volume_{stem}.npy: rename one",
+                    d.name
+                ),
+            ));
+        }
+        let corner = |key: &str| -> R<DVec3> {
+            let p = DVec3::from(t.req_vec3(key)?) * unit_m;
+            if !(p.abs().max_element() <= MAX_COORD_M) {
+                return Err(t.err_at(key, format!("every point must lie within {MAX_COORD_M:e} m of the origin")));
+            }
+            Ok(p)
+        };
+        let (min, max) = (corner("min")?, corner("max")?);
+        if !(max.cmpgt(min).all()) {
+            return Err(t.err_at("max", "every coordinate of max must exceed min's"));
+        }
+        let resolution = t.require("resolution", |n| {
+            let r = n.each(|x| x.u64())?;
+            if r.len() != 3 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
+                return Err(n.err(format!("expected [nx, ny, nz], each between 1 and {MAX_MAP_SIDE} voxels")));
+            }
+            if r.iter().product::<u64>() > MAX_VOXELS {
+                return Err(n.err(format!(
+                    "{} voxels are too many: at most {MAX_VOXELS} (each keeps four f64 tallies per thread)",
+                    r.iter().product::<u64>()
+                )));
+            }
+            Ok([r[0] as usize, r[1] as usize, r[2] as usize])
+        })?;
+        let offset = earlier.iter().map(|v| v.voxels()).sum();
+        Ok(crate::scene::volume::VolumeGrid { name, min: min - origin_m, max: max - origin_m, resolution, offset })
     }
 
     fn camera(&self, t: Table<'s, '_>, unit_m: f64) -> R<Camera> {

@@ -9,6 +9,7 @@ mod load;
 pub mod map;
 mod obj;
 pub(crate) mod shapes;
+pub mod volume;
 
 use std::path::PathBuf;
 
@@ -394,6 +395,8 @@ pub struct Scene {
     pub effects: Effects,
     /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
     pub detectors: Vec<farfield::FarField>,
+    /// Volume detectors (`[[detectors]] type = "volume"`).
+    pub volumes: Vec<volume::VolumeGrid>,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
@@ -449,6 +452,11 @@ impl Scene {
     /// Bins of all far-field detectors together.
     pub fn farfield_bins(&self) -> usize {
         self.detectors.iter().map(|d| d.bins()).sum()
+    }
+
+    /// Voxels of all volume detectors together (each grid's `offset` indexes into them).
+    pub fn volume_voxels(&self) -> usize {
+        self.volumes.iter().map(|v| v.voxels()).sum()
     }
 
     /// Wavelength bins of all surfaces' spectra together.
