@@ -470,3 +470,48 @@ fn media_declared_unlike_the_geometry_are_refused_naming_the_surface() {
         assert!(err.contains(message) && err.contains("surfaces["), "{err}");
     }
 }
+
+#[test]
+fn the_light_traced_image_of_a_thin_slab_is_its_single_scattering_radiance() {
+    // A 1 cm index-matched slab, μs = 0.1 /m (optical depth τ = 0.001), isotropic, no
+    // absorption, lit from below by a 1 m² collimated beam of 1 W (irradiance E = 1 W/m², flat
+    // over 360–830 nm: E_λ = E/470 nm). Seen from above at θ = 45° (μ = cos θ), the radiance
+    // leaving the top is single scattering, integrated along the line of sight:
+    //   L_λ = E_λ/(4π(1 − μ)) · (e^{−τ} − e^{−τ/μ})
+    // (multiple scattering adds a share of order τ, 10⁻³). Y of a flat spectral radiance is that
+    // radiance (film.rs), so the mean pixel Y must match, |z| < 4. Each splat passes the slab's
+    // top face (index-matched) with its transmittance along the way.
+    let toml = r#"[media.haze]
+scattering_per_m = 0.1
+
+[materials.slab]
+type = "dielectric"
+ior = 1.0
+medium = "haze"
+
+[[surfaces]]
+name = "slab"
+material = "slab"
+shape = { type = "box", min = [-1, -1, -0.01], max = [1, 1, 0] }
+
+[[lights]]
+name = "beam"
+shape = { type = "quad", corners = [[-0.5, -0.5, -0.05], [0.5, -0.5, -0.05], [0.5, 0.5, -0.05], [-0.5, 0.5, -0.05]] }
+distribution = "collimated"
+power_w = 1
+
+[camera]
+position = [0, -2.1213203, 2.1213203]
+look_at = [0, 0, 0]
+up = [0, 1, 0]
+fov_deg = 10
+resolution = [8, 8]
+"#;
+    let (s, r) = simulate(toml, 20_000_000, 9, common::EXPECTED);
+    assert!(s.effects.volume_scattering && s.camera.is_some());
+    let (tau, mu) = (0.001f64, std::f64::consts::FRAC_1_SQRT_2);
+    let want = 1.0 / 470.0 / (4.0 * std::f64::consts::PI * (1.0 - mu)) * ((-tau).exp() - (-tau / mu).exp());
+    let (y, se) = r.film.as_ref().unwrap().mean_y(r.emitted_w);
+    println!("thin slab: Y = {y:.4e} ± {se:.1e} against {want:.4e} (z = {:+.2})", (y - want) / se);
+    common::assert_z("single-scattering radiance", y, want, se, 4.0);
+}

@@ -254,6 +254,28 @@ impl Kernel<'_> {
                 }
             };
         let (range_lo, range_width) = (range.0, range.1 - range.0);
+        // Index-matched smooth dielectric boundaries, which a connection to the camera passes
+        // (nothing reflects or bends there), and the extinction per metre inside a dielectric.
+        let passable: Vec<bool> = materials
+            .iter()
+            .map(|m| match m {
+                Material::Dielectric { ior, outside_ior, roughness, scatter: None, .. } => {
+                    !roughness.is_rough() && ior == outside_ior
+                }
+                _ => false,
+            })
+            .collect();
+        let mu_t_at = |m: Option<u32>, lambda: f64| -> f64 {
+            let Some(m) = m else { return 0.0 };
+            match surface_medium[m as usize] {
+                Some(v) => {
+                    let med = &scene.media[v as usize];
+                    let dye = med.fluorescence.as_ref().map_or(0.0, |f| f.absorption_per_m.eval(lambda));
+                    med.absorption_per_m.eval(lambda) + med.scattering_per_m.eval(lambda) + dye
+                }
+                None => media::absorption(materials[m as usize]).map_or(0.0, |a| a.eval(lambda)),
+            }
+        };
         // Volume detectors: track lengths and deposits per voxel, off unless asked for.
         let volumes = &scene.volumes;
         let has_volumes = !volumes.is_empty();
@@ -376,6 +398,25 @@ impl Kernel<'_> {
                                         f
                                     }
                                     _ => {
+                                        if let (true, Some(cam), Some(film)) =
+                                            (CAMERA, self.camera, film.as_deref_mut())
+                                        {
+                                            // Next event to the camera: p(cos) toward it, through the media.
+                                            let value = |w: Vec3A| {
+                                                xyz * (weight * media::phase::pdf(med.phase, dir.dot(w) as f64)) as f32
+                                            };
+                                            splat_from_medium(
+                                                cam,
+                                                geo,
+                                                film,
+                                                at,
+                                                medium,
+                                                |m| mu_t_at(m, lambda),
+                                                &passable,
+                                                &scene.surface_outside,
+                                                value,
+                                            );
+                                        }
                                         out.counters.phase_samples += 1;
                                         dir = media::phase::sample(med.phase, dir, s.uniform(), s.uniform());
                                         break 'collision true;
@@ -412,6 +453,21 @@ impl Kernel<'_> {
                                     h.set_efficacy(photometry::efficacy_at(lambda));
                                 }
                                 coefficients = None;
+                                if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
+                                    // Re-emitted isotropically: 1/(4π) toward the camera, at λ'.
+                                    let value = |_: Vec3A| xyz * (weight / (4.0 * std::f64::consts::PI)) as f32;
+                                    splat_from_medium(
+                                        cam,
+                                        geo,
+                                        film,
+                                        at,
+                                        medium,
+                                        |m| mu_t_at(m, lambda),
+                                        &passable,
+                                        &scene.surface_outside,
+                                        value,
+                                    );
+                                }
                                 dir = new_dir;
                                 break 'collision true;
                             };
@@ -721,6 +777,54 @@ impl Hero {
         (0..4).fold(Vec3A::ZERO, |acc, k| {
             acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] / d) as f32
         })
+    }
+}
+
+/// Connects a point `p` inside a medium (`medium`: the dielectric it is in) to the camera and adds
+/// `value(ω)·T·importance` to its pixel, T = exp(−∫μt) along the way: the connection passes
+/// index-matched smooth boundaries (`passable`), changing medium there, and anything else
+/// blocks it. `mu_t(m)`: the extinction per metre inside dielectric m (0 outside all).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn splat_from_medium(
+    cam: &CameraModel,
+    geo: &Geometry,
+    film: &mut FilmBatch,
+    p: Vec3A,
+    medium: Option<u32>,
+    mu_t: impl Fn(Option<u32>) -> f64,
+    passable: &[bool],
+    outside: &[Option<u32>],
+    value: impl Fn(Vec3A) -> Vec3A,
+) {
+    // More boundaries than this between a point and the camera: treated as blocked.
+    const MAX_CROSSINGS: usize = 64;
+    let Some(proj) = cam.project(p) else { return };
+    let v = value(proj.to_camera);
+    if v == Vec3A::ZERO || !v.is_finite() {
+        return;
+    }
+    film.shadow_rays += 1;
+    let w = proj.to_camera;
+    let (mut origin, mut remaining, mut skip, mut m) = (p, proj.distance, NO_PRIM, medium);
+    let mut optical_depth = 0.0f64;
+    for _ in 0..MAX_CROSSINGS {
+        let Some(h) = geo.intersect(origin, w, remaining, skip) else {
+            optical_depth += mu_t(m) * remaining as f64;
+            film.add(proj.pixel, v * ((-optical_depth).exp() as f32 * proj.importance));
+            return;
+        };
+        let surface = geo.surface_of(h.prim as usize);
+        if !passable[surface as usize] {
+            return;
+        }
+        optical_depth += mu_t(m) * h.t as f64;
+        let n = geo.normal(h.prim as usize);
+        m = media::after_crossing(surface, n, w, outside);
+        let (hp, err) = geo.hit_point(&h);
+        origin = geo.spawn(hp, err, h.prim, w);
+        remaining = (cam.position - origin).length();
+        skip = h.prim;
     }
 }
 

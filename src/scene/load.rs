@@ -258,8 +258,8 @@ impl<'s> Loader<'s> {
         }
         if (effects.volume_scattering || effects.fluorescence) && camera.is_some() {
             warnings.push(
-                "the light-traced image does not show the light scattered inside media yet (a medium vertex is not \
-                 splatted to the camera); flux, maps and far fields include it"
+                "the light-traced image shows the light scattered inside a medium only where its way to the camera \
+                 crosses index-matched boundaries (ior = outside_ior); behind a refracting boundary it is missing"
                     .to_string(),
             );
         }
