@@ -368,12 +368,20 @@ fn describe(scene: &Scene) -> String {
         s.push_str(&format!("media ({}):\n", scene.media.len()));
         let (lo, hi) = scene.simulation.wavelength_range_nm;
         for m in &scene.media {
+            // Six significant digits at most: a fitted table's tails reach 1e-13.
+            let sig = |v: f64| {
+                if v == 0.0 || (1e-3..1e6).contains(&v.abs()) {
+                    format!("{}", (v * 1e4).round() / 1e4)
+                } else {
+                    format!("{v:.3e}")
+                }
+            };
             let range = |x: &photon::spectrum::Spectrum| {
                 let (a, b) = x.min_max_over((lo, hi));
                 if a == b {
-                    format!("{a}")
+                    sig(a)
                 } else {
-                    format!("{a}–{b}")
+                    format!("{}–{}", sig(a), sig(b))
                 }
             };
             let phase = match m.phase {
