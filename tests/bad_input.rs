@@ -1410,21 +1410,6 @@ fn bad_media() {
 }
 
 #[test]
-fn camera_integrators_refuse_media_for_now() {
-    // A dielectric filled with a medium, a camera, and the path tracer or BDPT chosen in the
-    // file or on the command line: exit 2 naming where the choice was made and the medium.
-    let scene = format!(
-        "[media.fog]\nscattering_per_m = 10\n\n[materials.glass]\ntype = \"dielectric\"\nmedium = \"fog\"\n\n\
-         [[surfaces]]\nname = \"cube\"\nmaterial = \"glass\"\nshape = {{ type = \"box\", min = [0.2, 0.2, 0.2], max = [0.4, 0.4, 0.4] }}\n\n\
-         [camera]\nposition = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\nfov_deg = 40\nresolution = [8, 8]\n\n{BASE}"
-    );
-    let in_file = scene.replace("[camera]", "[simulation]\nintegrator = \"bdpt\"\n\n[camera]");
-    expect_bad("media-bdpt", &in_file, &[], &["simulation.integrator = bdpt", "medium \"fog\"", "--integrator light"]);
-    let args: Vec<&str> = RUN.iter().copied().chain(["--integrator", "path"]).collect();
-    expect_exit2("media-path", Some(&scene), &[], &args, &["--integrator = path", "medium \"fog\""]);
-}
-
-#[test]
 fn a_point_light_has_no_spectrum_to_tally() {
     let toml = format!(
         "{BASE}\n[[lights]]\nname = \"p\"\nshape = {{ type = \"point\", position = [0.5, 0.5, 0.5] }}\nspectrum_bins = 4\n"

@@ -215,6 +215,7 @@ fn luminophore(emission: &[(f64, f64)], redshift: bool) -> photon::scene::Fluore
     photon::scene::Fluorescence {
         absorption_per_m: Spectrum::Constant(1.0),
         emission_sampler: SpectralSampler::new(&spectrum, (400.0, 700.0)).unwrap(),
+        absorption_sampler: SpectralSampler::new(&Spectrum::Constant(1.0), (400.0, 700.0)),
         emission: spectrum,
         quantum_yield: 1.0,
         redshift,
@@ -319,5 +320,57 @@ fn the_bundled_lsc_plate_matches_pvtrace_and_the_published_ray_tracers() {
         println!("{face}: photon {p:.3} ± {se:.3} %, pvtrace {pv} %, ray tracers {lo}–{hi} %");
         assert_z(&format!("{face} against pvtrace"), p, pv, se.hypot(pv_sigma / 10f64.sqrt()), 4.0);
         assert!(p > lo - 0.5 - 4.0 * se && p < hi + 0.5 + 4.0 * se, "{face}: {p} % outside {lo}–{hi} % ± 0.5");
+    }
+}
+
+#[test]
+fn the_camera_side_adjoint_of_re_emission_integrates_to_the_forward_kernel() {
+    // Paths traced from the camera run re-emission backwards: for light leaving at λ',
+    // `absorbed_for` draws the absorbed λ from μf and returns q·e(λ'|λ)·(λ/λ')·F over that
+    // density. Its mean must be ∫ μf(λ)·q·e(λ'|λ)·(λ/λ') dλ, the forward kernel's integral,
+    // here by a 30 000-point midpoint rule over e from `emission_pdf`, whose integral over λ' is
+    // checked to be 1 first (the density `reemit` draws from, by the χ² test above). μf is a
+    // ramp (λ − 400 per m over 400–700 nm), E the 550–650 nm triangle, q = 0.8; both emission
+    // modes, three λ'. 200 000 draws each; |z| < 4 against the draws' own standard error.
+    use photon::media::fluorescence::{absorbed_for, emission_pdf};
+    use photon::spectrum::{SpectralSampler, Spectrum, Table};
+    let range = (400.0, 700.0);
+    let ramp = Spectrum::Table(Table::new(vec![(400.0, 0.0), (700.0, 300.0)]));
+    let e = Spectrum::Table(Table::new(vec![(550.0, 0.0), (600.0, 1.0), (650.0, 0.0)]));
+    let midpoint = |f: &dyn Fn(f64) -> f64| -> f64 {
+        let n = 30_000;
+        let h = (range.1 - range.0) / n as f64;
+        (0..n).map(|i| f(range.0 + (i as f64 + 0.5) * h) * h).sum()
+    };
+    for redshift in [false, true] {
+        let f = photon::scene::Fluorescence {
+            absorption_sampler: SpectralSampler::new(&ramp, range),
+            absorption_per_m: ramp.clone(),
+            emission_sampler: SpectralSampler::new(&e, range).unwrap(),
+            emission: e.clone(),
+            quantum_yield: 0.8,
+            redshift,
+        };
+        for from in [450.0, 580.0, 620.0] {
+            let norm = midpoint(&|out| emission_pdf(&f, from, out));
+            assert!((norm - 1.0).abs() < 1e-4, "redshift {redshift}: ∫e(λ'|{from}) dλ' = {norm}");
+        }
+        for (k, out) in [570.0, 600.0, 640.0].into_iter().enumerate() {
+            let exact = midpoint(&|l| ramp.eval(l) * 0.8 * emission_pdf(&f, l, out) * l / out);
+            let mut s = photon::sampling::Sampler::for_batch(40 + k as u64, redshift as u64);
+            let n = 200_000;
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..n {
+                let (lambda, w) = absorbed_for(&f, out, s.uniform()).unwrap();
+                assert!((400.0..=700.0).contains(&lambda) && w.is_finite() && w >= 0.0);
+                sum += w;
+                sum2 += w * w;
+            }
+            let mean = sum / n as f64;
+            let se = ((sum2 / n as f64 - mean * mean) / n as f64).sqrt();
+            let z = (mean - exact) / se;
+            println!("redshift {redshift}, λ' = {out}: {mean:.6} ± {se:.2e} vs {exact:.6}, z = {z:.2}");
+            assert!(exact > 0.0 && z.abs() < 4.0, "redshift {redshift}, λ' = {out}: {mean} ± {se} vs {exact}");
+        }
     }
 }

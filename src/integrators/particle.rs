@@ -86,7 +86,8 @@ pub const PANIC_TEST_SEED: u64 = 0xDEAD_BEEF;
 impl Kernel<'_> {
     /// Whether hero wavelengths are used: spectral transport with a film, no dispersion, no
     /// scattering medium (whose free flights follow the hero's own μt: each photon keeps one
-    /// wavelength there) and no fluorescence (which changes it).
+    /// wavelength there), no fluorescence (which changes it) and no absorbing medium behind an
+    /// index-matched boundary (which splats look through at the photon's wavelength).
     pub fn uses_hero(&self) -> bool {
         let fx = &self.scene.effects;
         self.options.hero
@@ -94,6 +95,8 @@ impl Kernel<'_> {
             && !fx.dispersion
             && !fx.volume_scattering
             && !fx.fluorescence
+            && !(fx.absorbing_media
+                && self.scene.surfaces.iter().any(|s| is_passable(&self.scene.materials[s.material].material)))
             && self.camera.is_some()
     }
 
@@ -256,15 +259,9 @@ impl Kernel<'_> {
         let (range_lo, range_width) = (range.0, range.1 - range.0);
         // Index-matched smooth dielectric boundaries, which a connection to the camera passes
         // (nothing reflects or bends there), and the extinction per metre inside a dielectric.
-        let passable: Vec<bool> = materials
-            .iter()
-            .map(|m| match m {
-                Material::Dielectric { ior, outside_ior, roughness, scatter: None, .. } => {
-                    !roughness.is_rough() && ior == outside_ior
-                }
-                _ => false,
-            })
-            .collect();
+        let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
+        // With such boundaries in the scene, splats look through them (`splat_through`).
+        let see_through = DIELECTRIC && passable.iter().any(|&p| p);
         let mu_t_at = |m: Option<u32>, lambda: f64| -> f64 {
             let Some(m) = m else { return 0.0 };
             match surface_medium[m as usize] {
@@ -310,9 +307,15 @@ impl Kernel<'_> {
             if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                 film.photon = photon;
                 let colour = if HERO { hero.emission_xyz() } else { birth.xyz };
-                splat(cam, geo, film, birth.point, birth.point_err, birth.normal, birth.prim, |w| {
-                    colour * self.emitter.direction_pdf(birth.light, birth.axis, w)
-                });
+                let value = |w| colour * self.emitter.direction_pdf(birth.light, birth.axis, w);
+                let start = RayEnd { p: birth.point, err: birth.point_err, n: birth.normal, prim: birth.prim };
+                if see_through {
+                    let m = self.emitter.medium_at(birth.light, birth.prim);
+                    let mu_t = |m| mu_t_at(m, lambda);
+                    splat_through(cam, geo, film, start, m, mu_t, &passable, &scene.surface_outside, value);
+                } else {
+                    splat(cam, geo, film, start, value);
+                }
             }
             let mut origin = birth.origin;
             // How far the ray's origin lies ahead of the surface point it left, along the ray:
@@ -405,11 +408,11 @@ impl Kernel<'_> {
                                             let value = |w: Vec3A| {
                                                 xyz * (weight * media::phase::pdf(med.phase, dir.dot(w) as f64)) as f32
                                             };
-                                            splat_from_medium(
+                                            splat_through(
                                                 cam,
                                                 geo,
                                                 film,
-                                                at,
+                                                RayEnd::free(at),
                                                 medium,
                                                 |m| mu_t_at(m, lambda),
                                                 &passable,
@@ -456,11 +459,11 @@ impl Kernel<'_> {
                                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                                     // Re-emitted isotropically: 1/(4π) toward the camera, at λ'.
                                     let value = |_: Vec3A| xyz * (weight / (4.0 * std::f64::consts::PI)) as f32;
-                                    splat_from_medium(
+                                    splat_through(
                                         cam,
                                         geo,
                                         film,
-                                        at,
+                                        RayEnd::free(at),
                                         medium,
                                         |m| mu_t_at(m, lambda),
                                         &passable,
@@ -567,7 +570,7 @@ impl Kernel<'_> {
                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                     if bsdf.is_connectible() {
                         // f(wo, ω)·|cosθ_ω| toward the camera: the lanes' part in f64, the angular in f32.
-                        splat(cam, geo, film, p, err, n, hit.prim, |w| {
+                        let value = |w: Vec3A| {
                             let geometric = w.dot(n).abs();
                             match &hero_bsdf {
                                 Some(hb) => {
@@ -579,7 +582,22 @@ impl Kernel<'_> {
                                     xyz * (weight * f.spectral.0[0]) as f32 * (geometric * f.angular as f32)
                                 }
                             }
-                        });
+                        };
+                        let start = RayEnd { p, err, n, prim: hit.prim };
+                        if see_through {
+                            // Toward the camera the photon is in its medium, or beyond the
+                            // (rough) dielectric it is on.
+                            let to_camera = cam.project(p).map_or(Vec3A::ZERO, |proj| proj.to_camera);
+                            let m = if is_dielectric {
+                                media::after_crossing(surface, n, to_camera, &scene.surface_outside)
+                            } else {
+                                medium
+                            };
+                            let mu_t = |m| mu_t_at(m, lambda);
+                            splat_through(cam, geo, film, start, m, mu_t, &passable, &scene.surface_outside, value);
+                        } else {
+                            splat(cam, geo, film, start, value);
+                        }
                     }
                 }
 
@@ -780,17 +798,29 @@ impl Hero {
     }
 }
 
-/// Connects a point `p` inside a medium (`medium`: the dielectric it is in) to the camera and adds
-/// `value(ω)·T·importance` to its pixel, T = exp(−∫μt) along the way: the connection passes
-/// index-matched smooth boundaries (`passable`), changing medium there, and anything else
+/// An index-matched smooth dielectric boundary: a connection to the camera passes it (nothing
+/// reflects or bends there).
+fn is_passable(m: &Material) -> bool {
+    match m {
+        Material::Dielectric { ior, outside_ior, roughness, scatter: None, .. } => {
+            !roughness.is_rough() && ior == outside_ior
+        }
+        _ => false,
+    }
+}
+
+/// Connects `start` (a free point in a medium, or a surface point) to the camera and adds
+/// `value(ω)·T·importance` to its pixel, T = exp(−∫μt) along the way, `medium` being the
+/// dielectric the way starts in: the connection passes index-matched smooth boundaries
+/// (`passable`: nothing reflects or bends there), changing medium there, and anything else
 /// blocks it. `mu_t(m)`: the extinction per metre inside dielectric m (0 outside all).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn splat_from_medium(
+fn splat_through(
     cam: &CameraModel,
     geo: &Geometry,
     film: &mut FilmBatch,
-    p: Vec3A,
+    start: RayEnd,
     medium: Option<u32>,
     mu_t: impl Fn(Option<u32>) -> f64,
     passable: &[bool],
@@ -799,14 +829,15 @@ fn splat_from_medium(
 ) {
     // More boundaries than this between a point and the camera: treated as blocked.
     const MAX_CROSSINGS: usize = 64;
-    let Some(proj) = cam.project(p) else { return };
+    let Some(proj) = cam.project(start.p) else { return };
     let v = value(proj.to_camera);
     if v == Vec3A::ZERO || !v.is_finite() {
         return;
     }
     film.shadow_rays += 1;
     let w = proj.to_camera;
-    let (mut origin, mut remaining, mut skip, mut m) = (p, proj.distance, NO_PRIM, medium);
+    let mut origin = if start.prim == NO_PRIM { start.p } else { geo.spawn(start.p, start.err, start.prim, w) };
+    let (mut remaining, mut skip, mut m) = ((cam.position - origin).length(), start.prim, medium);
     let mut optical_depth = 0.0f64;
     for _ in 0..MAX_CROSSINGS {
         let Some(h) = geo.intersect(origin, w, remaining, skip) else {
@@ -877,23 +908,14 @@ fn collision_point(geo: &Geometry, h: &crate::geometry::Hit, dir: Vec3A, gap: f6
 /// the XYZ-weighted emission pdf or BSDF·|cos| toward the camera (see `film` for the estimator).
 #[inline]
 #[allow(clippy::too_many_arguments)]
-fn splat(
-    cam: &CameraModel,
-    geo: &Geometry,
-    film: &mut FilmBatch,
-    p: Vec3A,
-    err: Vec3A,
-    n: Vec3A,
-    prim: u32,
-    value: impl Fn(Vec3A) -> Vec3A,
-) {
-    let Some(proj) = cam.project(p) else { return };
+fn splat(cam: &CameraModel, geo: &Geometry, film: &mut FilmBatch, start: RayEnd, value: impl Fn(Vec3A) -> Vec3A) {
+    let Some(proj) = cam.project(start.p) else { return };
     let v = value(proj.to_camera);
     if v == Vec3A::ZERO || !v.is_finite() {
         return;
     }
     film.shadow_rays += 1;
-    if geo.visible(RayEnd { p, err, n, prim }, RayEnd::free(cam.position)) {
+    if geo.visible(start, RayEnd::free(cam.position)) {
         film.add(proj.pixel, v * proj.importance);
     }
 }

@@ -108,20 +108,6 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     if let Some(i) = opts.integrator {
         scene.simulation.integrator = i;
     }
-    let integrator = scene.simulation.integrator;
-    if integrator != crate::scene::Integrator::Light && scene.camera.is_some() && scene.effects.camera {
-        if let Some(m) = scene.surface_medium.iter().flatten().next() {
-            let chosen_by = if opts.integrator.is_some() { "--integrator" } else { "simulation.integrator" };
-            return Err(Error::Usage(format!(
-                "{}: {chosen_by} = {}: that integrator does not trace participating media yet, and the scene \
-                 fills a dielectric with medium \"{}\": use --integrator light (whose image does not show the \
-                 light scattered inside media either), or --no-image",
-                scene.path.display(),
-                integrator.name(),
-                scene.media[*m as usize].name
-            )));
-        }
-    }
     if let Some(b) = opts.max_bounces {
         scene.simulation.max_bounces = b;
     }

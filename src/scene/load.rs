@@ -256,10 +256,26 @@ impl<'s> Loader<'s> {
                 effects.spectral = true;
             }
         }
-        if (effects.volume_scattering || effects.fluorescence) && camera.is_some() {
+        // A medium behind a boundary that bends light: the light tracer's image cannot look in.
+        let refracting = surfaces.iter().zip(&surface_medium).any(|(s, m)| {
+            m.is_some()
+                && match &materials[s.material].material {
+                    Material::Dielectric { ior, outside_ior, roughness, scatter, .. } => {
+                        ior != outside_ior || roughness.is_rough() || scatter.is_some()
+                    }
+                    _ => false,
+                }
+        });
+        let integrator = simulation.integrator;
+        if (effects.volume_scattering || effects.fluorescence)
+            && camera.is_some()
+            && refracting
+            && integrator == Integrator::Light
+        {
             warnings.push(
                 "the light-traced image shows the light scattered inside a medium only where its way to the camera \
-                 crosses index-matched boundaries (ior = outside_ior); behind a refracting boundary it is missing"
+                 crosses index-matched boundaries (ior = outside_ior); behind a refracting boundary it is missing \
+                 (--integrator path or bdpt image it)"
                     .to_string(),
             );
         }
@@ -458,7 +474,8 @@ impl<'s> Loader<'s> {
                 ))),
             })?
             .unwrap_or(false);
-        Ok(Fluorescence { absorption_per_m, emission, emission_sampler, quantum_yield, redshift })
+        let absorption_sampler = SpectralSampler::new(&absorption_per_m, range);
+        Ok(Fluorescence { absorption_per_m, emission, emission_sampler, absorption_sampler, quantum_yield, redshift })
     }
 
     /// `phase = "isotropic"` or `{ henyey_greenstein = g }`, −1 < g < 1.

@@ -229,6 +229,9 @@ pub struct Fluorescence {
     pub absorption_per_m: Spectrum,
     pub emission: Spectrum,
     pub emission_sampler: crate::spectrum::SpectralSampler,
+    /// Draws an absorbed wavelength in proportion to μf(λ) (the camera integrators' adjoint
+    /// re-emission); None where the luminophore absorbs nothing in the simulated range.
+    pub absorption_sampler: Option<crate::spectrum::SpectralSampler>,
     pub quantum_yield: f64,
     /// `emission_sampling = "redshift"`: λ' only from the emission spectrum at or above the
     /// absorbed λ (where none lies above, its longest wavelength); `"full"` (false): all of it.

@@ -367,6 +367,19 @@ impl SpectralSampler {
         ((self.cdf[i] + 0.5 * (f0 + f) * dx) / self.total()).min(1.0)
     }
 
+    /// The density `sample` draws from, f(x)/∫f (piecewise linear between breakpoints; zero
+    /// outside them).
+    pub fn pdf(&self, x: f64) -> f64 {
+        let n = self.xs.len();
+        if !(x >= self.xs[0] && x <= self.xs[n - 1]) {
+            return 0.0;
+        }
+        let i = (self.xs.partition_point(|&v| v <= x).max(1) - 1).min(n - 2);
+        let (x0, x1) = (self.xs[i], self.xs[i + 1]);
+        let (f0, f1) = (self.ys[i], self.ys[i + 1]);
+        (f0 + (f1 - f0) * (x - x0) / (x1 - x0)) / self.total()
+    }
+
     /// λ with density f(λ)/∫f, from one uniform u in [0, 1).
     pub fn sample(&self, u: f64) -> f64 {
         let target = u * self.total();

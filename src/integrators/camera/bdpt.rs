@@ -17,19 +17,24 @@
 
 use glam::Vec3A;
 
+use super::medium::Event;
 use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::film::FilmBatch;
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
 use crate::media;
+use crate::media::fluorescence;
 use crate::sampling::Sampler;
+use crate::scene::Phase;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Kind {
     Camera,
     Light(usize),
     Surface,
+    /// A collision in a medium: a free point, no normal, no cosines.
+    Medium,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -55,6 +60,16 @@ struct Vertex<'a> {
     medium: Option<u32>,
     /// A surface vertex on a dielectric boundary: the media on its two sides differ.
     on_dielectric: bool,
+    /// A medium vertex's phase function and μs(λ) per lane (its factor when connected).
+    phase: Phase,
+    mu_s: Lanes,
+    /// Its own subpath went on from it by re-emission (isotropic, at a new wavelength), and did
+    /// so onto `reemit`'s point mass, which only the light-tracing strategy can reach.
+    reemitted: bool,
+    singular: bool,
+    /// The wavelengths the subpath arrived with, and its lanes' path densities (`medium`).
+    lambda: [f64; LANES],
+    lane_pdf: Lanes,
 }
 
 impl Vertex<'_> {
@@ -79,6 +94,12 @@ impl Vertex<'_> {
             axis: n,
             medium: None,
             on_dielectric: false,
+            phase: Phase::Isotropic,
+            mu_s: Lanes::ZERO,
+            reemitted: false,
+            singular: false,
+            lambda: [f64::NAN; LANES],
+            lane_pdf: Lanes::ONE,
         }
     }
 }
@@ -104,6 +125,13 @@ fn to_area(pdf: f64, from: Vec3A, to: &Vertex) -> f64 {
     pdf * cos / d2
 }
 
+/// Whether a subpath re-emitted before reaching its vertex k − 1 (at vertices 1..k − 2, the
+/// ones whose continuation the strategy keeps), so that it arrives there at a new wavelength.
+#[inline]
+fn reemitted_before(path: &[Vertex], k: usize) -> bool {
+    path[..k.saturating_sub(1)].iter().any(|v| v.reemitted)
+}
+
 /// 0 → 1, so a delta vertex's zero density drops out of the ratios (pbrt's remap0).
 #[inline]
 fn remap0(f: f64) -> f64 {
@@ -126,9 +154,17 @@ impl ImageKernel<'_> {
     ) -> Vec3A {
         let range = self.scene.simulation.wavelength_range_nm;
         let mut wl = Wavelengths::sample::<SPECTRAL>(self.emitter, range, s.uniform());
+        if self.fluorescent {
+            wl.terminate_secondary();
+        }
         let Scratch { light: lv, camera: cv, splats } = scratch;
-        let light = self.light_subpath::<SPECTRAL, DIELECTRIC>(&mut wl, s, lv, counters);
-        self.camera_subpath::<SPECTRAL, DIELECTRIC>(pixel, &mut wl, s, cv, counters);
+        // Each subpath carries its own wavelengths: re-emission changes them on one side only.
+        let (mut wl_light, mut wl_camera) = (wl, wl);
+        let light = self.light_subpath::<SPECTRAL, DIELECTRIC>(&mut wl_light, s, lv, counters);
+        self.camera_subpath::<SPECTRAL, DIELECTRIC>(pixel, &mut wl_camera, s, cv, counters);
+        if wl_light.terminated || wl_camera.terminated {
+            wl.terminate_secondary();
+        }
         let mut acc = LaneXyz::default();
         splats.clear();
         for t in 1..=cv.len() {
@@ -144,8 +180,10 @@ impl ImageKernel<'_> {
                 match to_pixel {
                     None => acc.add::<SPECTRAL>(self.emitter, &wl, c_light, c),
                     Some(p) => {
+                        // The camera sees the light vertex's wavelength.
+                        let seen = if self.fluorescent { wl.seen_at(self.emitter, lv[s_count - 1].lambda) } else { wl };
                         let mut one = LaneXyz::default();
-                        one.add::<SPECTRAL>(self.emitter, &wl, c_light, c);
+                        one.add::<SPECTRAL>(self.emitter, &seen, c_light, c);
                         splats.push((p, one));
                     }
                 }
@@ -190,6 +228,7 @@ impl ImageKernel<'_> {
         y0.axis = lp.axis;
         y0.delta = e.is_collimated(light);
         y0.medium = e.medium_at(light, lp.prim);
+        y0.lambda = wl.lambda;
         path.push(y0);
         let origin = if lp.normal == Vec3A::ZERO { lp.point } else { self.geo().spawn(lp.point, lp.err, lp.prim, dir) };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
@@ -219,7 +258,9 @@ impl ImageKernel<'_> {
     ) {
         path.clear();
         let cam = self.camera;
-        path.push(Vertex::endpoint(Kind::Camera, cam.position, Vec3A::ZERO, Vec3A::ZERO, NO_PRIM, Lanes::ONE, 1.0));
+        let mut z0 = Vertex::endpoint(Kind::Camera, cam.position, Vec3A::ZERO, Vec3A::ZERO, NO_PRIM, Lanes::ONE, 1.0);
+        z0.lambda = wl.lambda;
+        path.push(z0);
         let dir = cam.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
         let pdf = cam.direction_pdf(dir);
         // z₀ … z_{max+1}: the last may be an emitter ending a path of `max_scatterings` bounces.
@@ -259,11 +300,51 @@ impl ImageKernel<'_> {
         counters: &mut Counters,
     ) {
         let geo = self.geo();
+        let mut lane_pdf = Lanes::ONE;
         while path.len() < max_len {
             counters.rays += 1;
-            let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
-            let Arrival { surface, material, n, is_dielectric } =
-                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, medium, wl, &mut beta);
+            let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+            if DIELECTRIC {
+                let t_hit = next.map_or(f64::INFINITY, |h| h.t as f64);
+                if let Some((t, c)) = self.fly::<SPECTRAL>(medium, t_hit, wl, &mut beta, &mut lane_pdf, s, counters) {
+                    let x = origin + dir * t as f32;
+                    let index = path.len();
+                    let mut v = Vertex::endpoint(Kind::Medium, x, Vec3A::ZERO, Vec3A::ZERO, NO_PRIM, beta, 0.0);
+                    v.wo = -dir;
+                    v.medium = medium;
+                    v.phase = c.medium.phase;
+                    v.mu_s = c.mu_s;
+                    v.lambda = wl.lambda;
+                    v.lane_pdf = lane_pdf;
+                    v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
+                    path.push(v);
+                    if path.len() >= max_len {
+                        break;
+                    }
+                    let lambda_in = wl.lambda[0];
+                    let Some(event) = self.collide::<SPECTRAL>(&c, mode, wl, &mut beta, s) else { break };
+                    counters.phase_samples += 1;
+                    let new_dir = media::phase::sample(event.phase(), dir, s.uniform(), s.uniform());
+                    if event == Event::Reemitted {
+                        path[index].reemitted = true;
+                        path[index].singular = mode == Mode::Importance
+                            && c.medium
+                                .fluorescence
+                                .as_ref()
+                                .is_some_and(|f| fluorescence::reemits_at_point_mass(f, lambda_in));
+                    }
+                    // Phase functions are symmetric: the reverse density is the forward one.
+                    let pdf = event.phase_pdf(-dir, new_dir);
+                    path[index - 1].pdf_rev = to_area(pdf, x, &path[index - 1]);
+                    pdf_dir = pdf;
+                    origin = x;
+                    dir = new_dir;
+                    skip = NO_PRIM;
+                    continue;
+                }
+            }
+            let Some(hit) = next else { break };
+            let Arrival { surface, material, n, is_dielectric } = self.arrive::<DIELECTRIC>(&hit);
             let (p, err) = geo.hit_point(&hit);
             let index = path.len();
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
@@ -271,6 +352,8 @@ impl ImageKernel<'_> {
             v.wo = -dir;
             v.medium = medium;
             v.on_dielectric = is_dielectric;
+            v.lambda = wl.lambda;
+            v.lane_pdf = lane_pdf;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
             let tangent = || geo.tangent(hit.prim as usize);
             let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n, tangent);
@@ -308,6 +391,7 @@ impl ImageKernel<'_> {
             Kind::Camera => true,
             Kind::Light(l) => !self.emitter.is_collimated(l),
             Kind::Surface => v.bsdf.is_some_and(|b| b.mean_albedo(v.wo) > 0.0),
+            Kind::Medium => !v.mu_s.is_zero(),
         }
     }
 
@@ -323,7 +407,7 @@ impl ImageKernel<'_> {
         match v.kind {
             Kind::Light(l) => Some(l),
             Kind::Surface => self.surface_light[v.surface as usize],
-            Kind::Camera => None,
+            Kind::Camera | Kind::Medium => None,
         }
     }
 
@@ -347,6 +431,8 @@ impl ImageKernel<'_> {
                 }
             }
             Kind::Surface => v.bsdf.map_or(Lanes::ZERO, |b| b.f(v.wo, w, mode).value()),
+            // Connected, a medium vertex scatters: μs(λ)·p(cosθ).
+            Kind::Medium => v.mu_s * Event::Scattered(v.phase).phase_pdf(v.wo, w),
             Kind::Camera => Lanes::ZERO,
         }
     }
@@ -362,6 +448,12 @@ impl ImageKernel<'_> {
                 let wp = (prev.p - v.p).normalize();
                 let wn = (next.p - v.p).normalize();
                 to_area(b.pdf(wp, wn, mode), v.p, next)
+            }
+            Kind::Medium => {
+                let Some(prev) = prev else { return 0.0 };
+                let wp = (prev.p - v.p).normalize();
+                let wn = (next.p - v.p).normalize();
+                to_area(Event::Scattered(v.phase).phase_pdf(wp, wn), v.p, next)
             }
         }
     }
@@ -380,7 +472,10 @@ impl ImageKernel<'_> {
     }
 
     /// The unweighted contribution of strategy (s, t), the light its power came from, and for
-    /// t = 1 the pixel it lands in.
+    /// t = 1 the pixel it lands in. Each part is evaluated at the wavelengths its subpath
+    /// arrived with; with fluorescence a connection joining two subpaths (s, t ≥ 2) needs both
+    /// still at the sample's first wavelength (a re-emitted one matches the other side's with
+    /// probability zero), and a light connected at s = 1 is evaluated at the camera side's.
     #[allow(clippy::too_many_arguments)]
     fn connect<const SPECTRAL: bool>(
         &self,
@@ -398,8 +493,8 @@ impl ImageKernel<'_> {
                 return None;
             }
             let l = self.surface_light[pt.surface as usize]?;
-            let le = self.emitter.radiance::<SPECTRAL, LANES>(l, pt.n, pt.wo, &wl.lambda);
-            return (!le.is_zero()).then_some((pt.beta * le, l, None));
+            let le = self.emitter.radiance::<SPECTRAL, LANES>(l, pt.n, pt.wo, &pt.lambda);
+            return (!le.is_zero()).then_some((pt.beta * le * (1.0 / pt.lane_pdf.mean()), l, None));
         }
         let qs = &lv[s - 1];
         if !self.connectible(qs) {
@@ -409,7 +504,8 @@ impl ImageKernel<'_> {
             let proj = self.camera.project(qs.p)?;
             let w = proj.to_camera;
             let cos = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
-            let c = qs.beta * self.vertex_f(qs, w, Mode::Importance) * (cos * proj.importance as f64);
+            let c =
+                qs.beta * self.vertex_f(qs, w, Mode::Importance) * (cos * proj.importance as f64 / qs.lane_pdf.mean());
             if c.is_zero() {
                 return None;
             }
@@ -421,28 +517,39 @@ impl ImageKernel<'_> {
             if !self.connectible(pt) {
                 return None;
             }
+            if self.fluorescent && (reemitted_before(lv, s) || reemitted_before(cv, t)) && s >= 2 {
+                return None;
+            }
             let d = pt.p - qs.p;
             let d2 = d.length_squared() as f64;
             if !(d2 > 0.0) {
                 return None;
             }
             let w = d.normalize();
-            let cos_q = if qs.n == Vec3A::ZERO { 1.0 } else { qs.n.dot(w).abs() as f64 };
-            let cos_p = pt.n.dot(w).abs() as f64;
-            let mut c = qs.beta
+            let cos_of = |v: &Vertex| if v.n == Vec3A::ZERO { 1.0 } else { v.n.dot(w).abs() as f64 };
+            let beta_q = match qs.kind {
+                Kind::Light(l) if self.fluorescent => {
+                    let e = self.emitter;
+                    e.share_lanes::<SPECTRAL, LANES>(l, &pt.lambda) * (e.power_w(l) / e.pick_pdf(l))
+                }
+                _ => qs.beta,
+            };
+            let lane_pdf = (qs.lane_pdf * pt.lane_pdf).mean();
+            let mut c = beta_q
                 * self.vertex_f(qs, w, Mode::Importance)
                 * self.vertex_f(pt, -w, Mode::Radiance)
                 * pt.beta
-                * (cos_q * cos_p / d2);
+                * (cos_of(qs) * cos_of(pt) / (d2 * lane_pdf));
             // A visible segment crosses no dielectric boundary, so it lies in the medium on the
             // camera vertex's side toward the light vertex (beyond the boundary when the camera
-            // vertex sits on a rough dielectric); Beer–Lambert applies to it as to the sampled segments.
+            // vertex sits on a rough dielectric); its transmittance, as on the sampled segments.
             let medium = if pt.on_dielectric {
                 media::after_crossing(pt.surface, pt.n, -w, &self.scene.surface_outside)
             } else {
                 pt.medium
             };
-            if let Some(t) = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl)) {
+            let at = Wavelengths { lambda: pt.lambda, ..*wl };
+            if let Some(t) = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), &at)) {
                 c *= t;
             }
             if c.is_zero() {
@@ -475,6 +582,21 @@ impl ImageKernel<'_> {
             _ => 0.0,
         };
 
+        // With fluorescence, a path re-emitted at some vertex (other than this strategy's two
+        // connection ends, which scatter) is sampled only by the strategies that connect no
+        // two subpaths: s = 0, s = 1 and t = 1 (see `connect`), and only by those whose
+        // connection ends are not re-emission vertices; onto `reemit`'s point mass only by t = 1.
+        let n = s + t;
+        let x = |j: usize| if j < s { &lv[j] } else { &cv[n - 1 - j] };
+        let reemits_at = |j: usize| self.fluorescent && j + 1 != s && j != s && x(j).reemitted;
+        let reemitted = self.fluorescent && (0..n).any(reemits_at);
+        if reemitted && (0..n).any(|j| reemits_at(j) && x(j).singular) {
+            return 1.0;
+        }
+        let allowed = |s2: usize| {
+            !reemitted || ((s2 <= 1 || s2 + 1 == n) && (s2 == 0 || !reemits_at(s2 - 1)) && (s2 == n || !reemits_at(s2)))
+        };
+
         let mut sum = 0.0;
         // Camera side: z_i generated by the light subpath instead.
         let cam_rev = |i: usize| {
@@ -490,7 +612,7 @@ impl ImageKernel<'_> {
         let mut ratio = 1.0;
         for i in (1..t).rev() {
             ratio *= remap0(cam_rev(i)) / remap0(cv[i].pdf_fwd);
-            if !cam_delta(i) && !cam_delta(i - 1) {
+            if !cam_delta(i) && !cam_delta(i - 1) && allowed(n - i) {
                 sum += ratio;
             }
         }
@@ -509,7 +631,7 @@ impl ImageKernel<'_> {
         for i in (0..s).rev() {
             ratio *= remap0(light_rev(i)) / remap0(lv[i].pdf_fwd);
             let before_is_delta = if i > 0 { light_delta(i - 1) } else { self.is_delta_light(&lv[0]) };
-            if !light_delta(i) && !before_is_delta {
+            if !light_delta(i) && !before_is_delta && allowed(i) {
                 sum += ratio;
             }
         }

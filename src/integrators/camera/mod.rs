@@ -18,6 +18,7 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 mod bdpt;
+mod medium;
 mod path;
 
 use glam::Vec3A;
@@ -27,7 +28,6 @@ use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd};
 use crate::lights::Emitter;
-use crate::media;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
 
@@ -39,23 +39,40 @@ pub const LANES: usize = 4;
 pub use crate::spectrum::Lanes;
 
 /// The wavelengths of one camera sample (see the module comment).
+#[derive(Clone, Copy)]
 pub struct Wavelengths {
     pub lambda: [f64; LANES],
     /// (x̄, ȳ, z̄)(λₖ)/(∫ȳ · p(λₖ)) with p = 1/width: the lane's radiance-to-XYZ factor.
     colour: [Vec3A; LANES],
     /// A dispersive event bent the path for λ₀ only: lanes 1..3 are dropped at the end.
     terminated: bool,
+    /// 1/p(λ) of the uniform wavelength density (the range's width in nm).
+    width: f64,
 }
 
 impl Wavelengths {
     pub fn sample<const SPECTRAL: bool>(emitter: &Emitter, range: (f64, f64), u: f64) -> Self {
         if !SPECTRAL {
-            return Wavelengths { lambda: [f64::NAN; LANES], colour: [Vec3A::ZERO; LANES], terminated: false };
+            return Wavelengths {
+                lambda: [f64::NAN; LANES],
+                colour: [Vec3A::ZERO; LANES],
+                terminated: false,
+                width: 1.0,
+            };
         }
         let width = range.1 - range.0;
         let lambda: [f64; LANES] =
             std::array::from_fn(|k| range.0 + (u * width + k as f64 * width / LANES as f64).rem_euclid(width));
-        Wavelengths { lambda, colour: lambda.map(|l| emitter.colour(l) * width as f32), terminated: false }
+        Wavelengths { lambda, colour: lambda.map(|l| emitter.colour(l) * width as f32), terminated: false, width }
+    }
+
+    /// These wavelengths with lane 0 at `lambda` and seen by the sensor there: a light
+    /// subpath's re-emitted wavelength reaching the camera (its density is already in the
+    /// subpath's weight; the width stands for the first wavelength's, drawn uniformly).
+    fn seen_at(&self, emitter: &Emitter, lambda: [f64; LANES]) -> Wavelengths {
+        let mut wl = Wavelengths { lambda, ..*self };
+        wl.colour[0] = emitter.colour(lambda[0]) * wl.width as f32;
+        wl
     }
 
     pub fn terminate_secondary(&mut self) {
@@ -136,6 +153,10 @@ pub struct ImageKernel<'a> {
     /// Path tracing: the point lights the camera sees directly (empty for BDPT, whose t = 1
     /// strategy images them, and for scenes without point lights).
     point_views: Vec<PointView>,
+    /// Fluorescent transport: samples keep lane 0 alone, whose wavelength re-emission changes.
+    fluorescent: bool,
+    /// Free flights weight the lanes by the one-sample MIS of `medium` (no lane is ever dropped).
+    lane_mis: bool,
 }
 
 /// A point light in the camera's view with nothing in between: no camera ray can hit it, so its
@@ -187,7 +208,7 @@ impl<'a> ImageKernel<'a> {
     ) -> Self {
         let range = scene.simulation.wavelength_range_nm;
         let materials: Vec<&Material> = (0..scene.surfaces.len()).map(|s| scene.material_of(s)).collect();
-        let dispersive = materials
+        let dispersive: Vec<bool> = materials
             .iter()
             .map(|m| match m {
                 Material::Dielectric { ior, outside_ior, .. } => {
@@ -197,6 +218,8 @@ impl<'a> ImageKernel<'a> {
             })
             .collect();
         let point_views = if integrator == Integrator::Path { point_views(scene, emitter, camera) } else { Vec::new() };
+        let fluorescent = scene.effects.fluorescence;
+        let lane_mis = !fluorescent && !dispersive.iter().any(|&d| d);
         ImageKernel {
             scene,
             emitter,
@@ -207,6 +230,8 @@ impl<'a> ImageKernel<'a> {
             materials,
             surface_light: scene.surfaces.iter().map(|s| s.light).collect(),
             dispersive,
+            fluorescent,
+            lane_mis,
             max_scatterings: scene.simulation.max_bounces as usize + 1,
         }
     }
@@ -265,34 +290,15 @@ impl<'a> ImageKernel<'a> {
         film
     }
 
-    /// The surface `hit` lies on. Crossing an absorbing medium, `beta` keeps exp(−α(λ)t) per
-    /// lane (Beer–Lambert). The medium is the dielectric the subpath last refracted into, or the
-    /// one its light sits in (the camera is outside).
+    /// The surface `hit` lies on (what the segment to it cost is `fly`'s).
     #[inline]
-    fn arrive<const SPECTRAL: bool, const DIELECTRIC: bool>(
-        &self,
-        hit: &crate::geometry::Hit,
-        medium: Option<u32>,
-        wl: &Wavelengths,
-        beta: &mut Lanes,
-    ) -> Arrival<'_> {
+    fn arrive<const DIELECTRIC: bool>(&self, hit: &crate::geometry::Hit) -> Arrival<'_> {
         let geo = self.geo();
         let prim = hit.prim as usize;
         let surface = geo.surface_of(prim);
         let material = self.materials[surface as usize];
         let n = geo.normal(prim);
         let is_dielectric = DIELECTRIC && matches!(material, Material::Dielectric { .. });
-        if let Some(t) = medium.filter(|_| DIELECTRIC).and_then(|m| self.medium_transmittance::<SPECTRAL>(m, hit.t, wl))
-        {
-            *beta *= t;
-        }
         Arrival { surface, material, n, is_dielectric }
-    }
-
-    /// Beer–Lambert transmittance exp(−α(λ)t) per lane over a segment inside `medium`.
-    #[inline]
-    fn medium_transmittance<const SPECTRAL: bool>(&self, medium: u32, t: f32, wl: &Wavelengths) -> Option<Lanes> {
-        media::absorption(self.materials[medium as usize])
-            .map(|alpha| media::transmittance::<SPECTRAL, LANES>(alpha, &wl.lambda, t as f64))
     }
 }

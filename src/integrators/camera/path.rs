@@ -10,6 +10,7 @@
 
 use glam::Vec3A;
 
+use super::medium::Event;
 use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::tally::Counters;
@@ -50,15 +51,56 @@ impl ImageKernel<'_> {
         let mut dir = self.camera.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
         let mut skip = NO_PRIM;
         let mut beta = Lanes::ONE;
+        // Each lane's path density over lane 0's (`medium`); contributions are divided by its mean.
+        let mut lane_pdf = Lanes::ONE;
+        if self.fluorescent {
+            wl.terminate_secondary();
+        }
         // Solid-angle pdf of the last diffuse bounce; None after the camera or a specular bounce.
         let mut bsdf_pdf: Option<f64> = None;
         let mut medium: Option<u32> = None;
         let mut scatterings = 0usize;
         loop {
             counters.rays += 1;
-            let Some(hit) = geo.intersect(origin, dir, f32::INFINITY, skip) else { break };
-            let Arrival { surface, material, n, is_dielectric } =
-                self.arrive::<SPECTRAL, DIELECTRIC>(&hit, medium, &wl, &mut beta);
+            let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+            if DIELECTRIC {
+                let t_hit = next.map_or(f64::INFINITY, |h| h.t as f64);
+                if let Some((t, c)) = self.fly::<SPECTRAL>(medium, t_hit, &wl, &mut beta, &mut lane_pdf, s, counters) {
+                    // A collision in the medium: scattering or re-emission, next-event estimation
+                    // with the event's phase function, then a direction from it.
+                    if scatterings == self.max_scatterings {
+                        break;
+                    }
+                    scatterings += 1;
+                    let x = origin + dir * t as f32;
+                    let Some(event) = self.collide::<SPECTRAL>(&c, Mode::Radiance, &mut wl, &mut beta, s) else {
+                        break;
+                    };
+                    let scatterer = Scatterer::Medium(event);
+                    let vertex = RayEnd::free(x);
+                    self.next_event::<SPECTRAL>(
+                        scatterer,
+                        vertex,
+                        (medium, None),
+                        -dir,
+                        beta,
+                        lane_pdf,
+                        &wl,
+                        &mut acc,
+                        s,
+                        counters,
+                    );
+                    counters.phase_samples += 1;
+                    let new_dir = media::phase::sample(event.phase(), dir, s.uniform(), s.uniform());
+                    bsdf_pdf = Some(event.phase_pdf(-dir, new_dir));
+                    origin = x;
+                    dir = new_dir;
+                    skip = NO_PRIM;
+                    continue;
+                }
+            }
+            let Some(hit) = next else { break };
+            let Arrival { surface, material, n, is_dielectric } = self.arrive::<DIELECTRIC>(&hit);
 
             // Emission seen along the ray, MIS-weighted against next-event estimation.
             if let Some(light) = self.surface_light[surface as usize] {
@@ -75,7 +117,7 @@ impl ImageKernel<'_> {
                             power_heuristic(p_bsdf, p_light)
                         }
                     };
-                    acc.add::<SPECTRAL>(self.emitter, &wl, light, beta * le * weight);
+                    acc.add::<SPECTRAL>(self.emitter, &wl, light, beta * le * (weight / lane_pdf.mean()));
                 }
             }
             if scatterings == self.max_scatterings {
@@ -97,7 +139,8 @@ impl ImageKernel<'_> {
                 // Through a rough dielectric the light may lie on the other side, in the other medium.
                 let crossing = is_dielectric.then_some(surface);
                 let media = (medium, crossing);
-                self.next_event::<SPECTRAL>(&bsdf, vertex, media, -dir, beta, &wl, &mut acc, s, counters);
+                let scatterer = Scatterer::Surface(&bsdf);
+                self.next_event::<SPECTRAL>(scatterer, vertex, media, -dir, beta, lane_pdf, &wl, &mut acc, s, counters);
             }
             let Some(sampled) = scatter(&bsdf, -dir, Mode::Radiance, &mut beta, s) else { break };
             bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
@@ -112,19 +155,22 @@ impl ImageKernel<'_> {
         acc.resolve::<SPECTRAL>(&wl)
     }
 
-    /// Next-event estimation from a diffuse vertex at `p`: one light point, its emission toward
-    /// `p` times f·|cosθ|, over the solid-angle density of having sampled it, MIS-weighted.
-    /// For a point or area light alike the ratio Le·cosθ_l/(d² · pick · pdf_position) reduces to
-    /// Φ_λ · p_dir(ω)/(pick · d²), with Φ_λ the light's power per nm and p_dir its direction pdf.
+    /// Next-event estimation from a diffuse surface vertex or a medium collision at `p`: one
+    /// light point, its emission toward `p` times the scatterer's factor (f·|cosθ| at a surface,
+    /// the phase function in a medium), through the medium between, over the solid-angle density
+    /// of having sampled it, MIS-weighted. For a point or area light alike the ratio
+    /// Le·cosθ_l/(d² · pick · pdf_position) reduces to Φ_λ · p_dir(ω)/(pick · d²), with Φ_λ the
+    /// light's power per nm and p_dir its direction pdf.
     #[allow(clippy::too_many_arguments)]
     #[inline]
     fn next_event<const SPECTRAL: bool>(
         &self,
-        bsdf: &Bsdf,
+        scatterer: Scatterer,
         vertex: RayEnd,
         (medium, crossing): (Option<u32>, Option<u32>),
         wo: Vec3A,
         beta: Lanes,
+        lane_pdf: Lanes,
         wl: &Wavelengths,
         acc: &mut LaneXyz,
         s: &mut Sampler,
@@ -143,29 +189,43 @@ impl ImageKernel<'_> {
         if !(p_dir > 0.0 && d2 > 0.0) {
             return;
         }
-        let f = bsdf.f(wo, wi, Mode::Radiance).value();
+        let (f, cos_x, pdf) = match scatterer {
+            Scatterer::Surface(bsdf) => {
+                (bsdf.f(wo, wi, Mode::Radiance).value(), wi.dot(n).abs() as f64, bsdf.pdf(wo, wi, Mode::Radiance))
+            }
+            Scatterer::Medium(event) => {
+                let phase = event.phase_pdf(wo, wi);
+                (Lanes::splat(phase), 1.0, phase)
+            }
+        };
         if f.is_zero() {
             return;
         }
-        let cos_x = wi.dot(n).abs() as f64;
         let weight = if self.emitter.is_point(light) {
             1.0
         } else {
             let cos_l = (-wi).dot(lp.normal) as f64;
             let p_light = pick * self.emitter.position_pdf(light) * d2 / cos_l;
-            power_heuristic(p_light, bsdf.pdf(wo, wi, Mode::Radiance))
+            power_heuristic(p_light, pdf)
         };
         counters.shadow_rays += 1;
         if !self.geo().visible(vertex, lp.end()) {
             return;
         }
         let radiance_term = self.emitter.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda)
-            * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight);
+            * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight / lane_pdf.mean());
         // A visible light lies in the medium on `wi`'s side: the vertex's own, or beyond the
-        // dielectric boundary it sits on (`crossing`). Beer–Lambert over the shadow segment.
+        // dielectric boundary it sits on (`crossing`). Its transmittance over the shadow segment.
         let medium =
             crossing.map_or(medium, |surface| media::after_crossing(surface, n, wi, &self.scene.surface_outside));
-        let absorbed = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt() as f32, wl));
-        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * absorbed.unwrap_or(Lanes::ONE));
+        let through = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), wl));
+        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * through.unwrap_or(Lanes::ONE));
     }
+}
+
+/// What scatters at a path vertex: a surface's BSDF or a medium collision's event.
+#[derive(Clone, Copy)]
+enum Scatterer<'b, 'a> {
+    Surface(&'b Bsdf<'a>),
+    Medium(Event),
 }
