@@ -20,6 +20,12 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("tissue_slab", "grey", "specular_reflection, refraction, absorbing_media, volume_scattering"),
         ("lsc_plate", "spectral", "spectral, specular_reflection, refraction, absorbing_media, fluorescence"),
         (
+            "led_phosphor",
+            "spectral",
+            "spectral, diffuse_reflection, specular_reflection, refraction, absorbing_media, volume_scattering, \
+             fluorescence, camera",
+        ),
+        (
             "glass",
             "spectral",
             "spectral, diffuse_reflection, specular_reflection, refraction, dispersion, absorbing_media, camera",
