@@ -338,9 +338,19 @@ fn unsupported_dielectric_geometry_is_refused() {
         ),
         (
             "touching",
+            // Touching over part of a face: the triangles there do not match (adjacent
+            // dielectrics with matching faces are joined instead).
             surface("left", "{ type = \"box\", min = [0,0,0], max = [1,1,1] }")
-                + &surface("right", "{ type = \"box\", min = [1,0,0], max = [2,1,1] }"),
-            "share a face",
+                + &surface("right", "{ type = \"box\", min = [1,-1,0], max = [2,1,1] }"),
+            "do not match vertex for vertex",
+        ),
+        (
+            // Adjacent (matching faces) but one rough: the joined interface would need both.
+            "adjacent-rough",
+            surface("left", "{ type = \"box\", min = [0,0,0], max = [1,1,1] }")
+                + "[[surfaces]]\nname = \"right\"\nmaterial = \"frosted\"\nshape = { type = \"box\", min = [1,0,0], max = [2,1,1] }\n"
+                + "[materials.frosted]\ntype = \"dielectric\"\nior = 1.5\nroughness = 0.2\n",
+            "must both be smooth",
         ),
         (
             "camera-inside",

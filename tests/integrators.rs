@@ -784,3 +784,18 @@ fn a_fluorescent_glass_block_images_alike_in_path_and_bdpt_and_the_light_tracer_
     // block's brightness in the camera integrators.
     assert!(l.0 + 4.0 * l.1 < 0.8 * (b.0 - 4.0 * b.1), "light tracer {l:?} vs BDPT {b:?} on the block");
 }
+
+#[test]
+fn two_adjacent_scattering_boxes_image_alike_in_light_path_and_bdpt() {
+    // The fog box cut in two at y = 150 mm, the halves adjacent (sharing that face) and filled
+    // with different fogs (μs 25 below, 8 above, g = 0.4 and isotropic): every integrator
+    // changes medium at the joined interface without meeting anything there. Bounds as above.
+    let toml = cornell_with_medium_box("absorption_per_m = 2\nscattering_per_m = 25\nphase = { henyey_greenstein = 0.4 }", 1.0, 128)
+        .replace("max = [330, 330, 440]", "max = [330, 150, 440]")
+        + "\n[media.thin]\nabsorption_per_m = 1\nscattering_per_m = 8\n\n[materials.upper_boundary]\ntype = \"dielectric\"\n\
+           ior = 1.0\nmedium = \"thin\"\n\n[[surfaces]]\nname = \"upper_box\"\nmaterial = \"upper_boundary\"\n\
+           shape = { type = \"box\", min = [150, 150, 260], max = [330, 330, 440] }\n";
+    let s = scene(&toml);
+    assert!(s.surfaces.iter().any(|x| x.name == "medium_box|upper_box"), "the halves must be joined");
+    assert_three_integrators_agree(&toml, 2_000_000, 24);
+}

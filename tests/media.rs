@@ -515,3 +515,118 @@ resolution = [8, 8]
     println!("thin slab: Y = {y:.4e} ± {se:.1e} against {want:.4e} (z = {:+.2})", (y - want) / se);
     common::assert_z("single-scattering radiance", y, want, se, 4.0);
 }
+
+#[test]
+fn two_adjacent_layers_of_the_mcml_tissue_make_the_mcml_slab() {
+    // The MCML slab (van de Hulst 1980; Wang, Jacques & Zheng 1995, Table 2: R_d 0.09739,
+    // T_t 0.66096) as two 0.01 cm layers sharing a face, each its own dielectric and medium
+    // entry: the loader joins the coincident faces into one interface ("upper|lower"), and a
+    // photon crossing it changes medium without meeting anything. Same bounds as the one-slab
+    // test (|z| < 4 against the run's standard error).
+    let layer = |name: &str, z0: f64, z1: f64| {
+        format!(
+            "[media.{name}]\n{MCML_TISSUE}\n\n[materials.{name}]\ntype = \"dielectric\"\nior = 1.0\nmedium = \"{name}\"\n\n\
+             [[surfaces]]\nname = \"{name}\"\nmaterial = \"{name}\"\nshape = {{ type = \"box\", min = [-2, -2, {z0}], max = [2, 2, {z1}] }}\n"
+        )
+    };
+    let catchers = r#"[[surfaces]]
+name = "above"
+material = "absorber"
+shape = { type = "quad", corners = [[-1e5, -1e5, 1], [1e5, -1e5, 1], [1e5, 1e5, 1], [-1e5, 1e5, 1]] }
+
+[[surfaces]]
+name = "below"
+material = "absorber"
+shape = { type = "quad", corners = [[-1e5, -1e5, -1], [1e5, -1e5, -1], [1e5, 1e5, -1], [-1e5, 1e5, -1]] }
+
+[[lights]]
+name = "beam"
+shape = { type = "quad", corners = [[-0.001, -0.001, 0.1], [-0.001, 0.001, 0.1], [0.001, 0.001, 0.1], [0.001, -0.001, 0.1]] }
+distribution = "collimated"
+power_w = 1
+"#;
+    let toml =
+        format!("[scene]\nunit = \"cm\"\n\n{}{}{catchers}", layer("upper", -0.01, 0.0), layer("lower", -0.02, -0.01));
+    let s = common::scene(&toml);
+    let names: Vec<&str> = s.surfaces.iter().map(|s| s.name.as_str()).collect();
+    assert!(names.contains(&"upper|lower"), "{names:?}");
+    let vol = |m: &str| s.media.iter().find(|x| x.name == m).unwrap().volume_m3;
+    assert!(
+        (vol("upper") - 1.6e-7).abs() < 1e-12 && (vol("lower") - 1.6e-7).abs() < 1e-12,
+        "{} {}",
+        vol("upper"),
+        vol("lower")
+    );
+    let f = common::run(&toml, 1_000_000, 1);
+    assert!(f.ledger.relative_residual() < 1e-12, "{:?}", f.ledger);
+    let (r, t) = reflectance_transmittance(&f);
+    assert_near("two-layer R_d", r, 0.09739);
+    assert_near("two-layer T_t", t, 0.66096);
+    // Both layers absorb: the beam's side more.
+    let absorbed = |m: &str| f.media.iter().find(|x| x.name == m).unwrap().absorbed_w;
+    let (up, low) = (absorbed("upper"), absorbed("lower"));
+    assert!(up > low && low > 0.05, "upper {up}, lower {low}");
+}
+
+#[test]
+fn a_glass_plate_on_water_transmits_what_the_incoherent_stack_of_three_interfaces_does() {
+    // A 1 cm glass plate (n 1.5) lying on a 2 cm water layer (n 1.33), the two sharing a face,
+    // under a normal beam: the incoherent stack air|glass|water|air (R = R₁ + T₁²R₂/(1 − R₁R₂),
+    // T = T₁T₂/(1 − R₁R₂), Fresnel at normal incidence). Without the joined interface the
+    // glass would meet air below it (two more reflections): T would be that of air|glass|air|
+    // water|air instead, 0.8% lower. Analog: s.e. = √(T(1 − T)/N), |z| < 4.
+    let fresnel = |a: f64, b: f64| ((a - b) / (a + b)).powi(2);
+    let combine = |(r1, t1): (f64, f64), (r2, t2): (f64, f64)| {
+        let d = 1.0 - r1 * r2;
+        (r1 + t1 * t1 * r2 / d, t1 * t2 / d)
+    };
+    let iface = |a: f64, b: f64| (fresnel(a, b), 1.0 - fresnel(a, b));
+    let stack = [iface(1.0, 1.5), iface(1.5, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
+    let separate =
+        [iface(1.0, 1.5), iface(1.5, 1.0), iface(1.0, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
+    let toml = r#"[scene]
+unit = "cm"
+
+[materials.glass]
+type = "dielectric"
+ior = 1.5
+
+[materials.water]
+type = "dielectric"
+ior = 1.33
+
+[[surfaces]]
+name = "glass"
+material = "glass"
+shape = { type = "box", min = [-3, -3, -1], max = [3, 3, 0] }
+
+[[surfaces]]
+name = "water"
+material = "water"
+shape = { type = "box", min = [-3, -3, -3], max = [3, 3, -1] }
+
+[[surfaces]]
+name = "below"
+material = "absorber"
+shape = { type = "quad", corners = [[-1e3, -1e3, -4], [1e3, -1e3, -4], [1e3, 1e3, -4], [-1e3, 1e3, -4]] }
+
+[[lights]]
+name = "beam"
+shape = { type = "quad", corners = [[-0.001, -0.001, 0.1], [-0.001, 0.001, 0.1], [0.001, 0.001, 0.1], [0.001, -0.001, 0.1]] }
+distribution = "collimated"
+power_w = 1
+"#;
+    let n = 400_000;
+    let (s, r) = simulate(toml, n, 9, common::ANALOG);
+    let f = photon::output::flux(&s, &r);
+    assert!(f.ledger.relative_residual() < 1e-12, "{:?}", f.ledger);
+    let t = surface(&f, "below").absorbed_w;
+    let se = (stack.1 * (1.0 - stack.1) / n as f64).sqrt();
+    println!(
+        "glass on water: T = {t:.5} against the stack's {:.5} (s.e. {se:.1e}); separated {:.5}",
+        stack.1, separate.1
+    );
+    assert!((stack.1 - separate.1) / se > 10.0, "the test must tell the joined interface from two");
+    common::assert_z("glass-on-water transmittance", t, stack.1, se, 4.0);
+    assert!(surface(&f, "glass|water").incident_w > 0.9, "{:?}", surface(&f, "glass|water").incident_w);
+}

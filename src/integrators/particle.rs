@@ -312,7 +312,17 @@ impl Kernel<'_> {
                 if see_through {
                     let m = self.emitter.medium_at(birth.light, birth.prim);
                     let mu_t = |m| mu_t_at(m, lambda);
-                    splat_through(cam, geo, film, start, m, mu_t, &passable, &scene.surface_outside, value);
+                    splat_through(
+                        cam,
+                        geo,
+                        film,
+                        start,
+                        m,
+                        mu_t,
+                        &passable,
+                        (&scene.surface_inside, &scene.surface_outside),
+                        value,
+                    );
                 } else {
                     splat(cam, geo, film, start, value);
                 }
@@ -416,7 +426,7 @@ impl Kernel<'_> {
                                                 medium,
                                                 |m| mu_t_at(m, lambda),
                                                 &passable,
-                                                &scene.surface_outside,
+                                                (&scene.surface_inside, &scene.surface_outside),
                                                 value,
                                             );
                                         }
@@ -467,7 +477,7 @@ impl Kernel<'_> {
                                         medium,
                                         |m| mu_t_at(m, lambda),
                                         &passable,
-                                        &scene.surface_outside,
+                                        (&scene.surface_inside, &scene.surface_outside),
                                         value,
                                     );
                                 }
@@ -589,12 +599,28 @@ impl Kernel<'_> {
                             // (rough) dielectric it is on.
                             let to_camera = cam.project(p).map_or(Vec3A::ZERO, |proj| proj.to_camera);
                             let m = if is_dielectric {
-                                media::after_crossing(surface, n, to_camera, &scene.surface_outside)
+                                media::after_crossing(
+                                    surface,
+                                    n,
+                                    to_camera,
+                                    &scene.surface_inside,
+                                    &scene.surface_outside,
+                                )
                             } else {
                                 medium
                             };
                             let mu_t = |m| mu_t_at(m, lambda);
-                            splat_through(cam, geo, film, start, m, mu_t, &passable, &scene.surface_outside, value);
+                            splat_through(
+                                cam,
+                                geo,
+                                film,
+                                start,
+                                m,
+                                mu_t,
+                                &passable,
+                                (&scene.surface_inside, &scene.surface_outside),
+                                value,
+                            );
                         } else {
                             splat(cam, geo, film, start, value);
                         }
@@ -651,7 +677,13 @@ impl Kernel<'_> {
                 }
                 scatterings += 1;
                 if is_dielectric {
-                    medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
+                    medium = media::after_crossing(
+                        surface,
+                        n,
+                        new_dir,
+                        &self.scene.surface_inside,
+                        &self.scene.surface_outside,
+                    );
                 }
                 origin = geo.spawn(p, err, hit.prim, new_dir);
                 if DIELECTRIC {
@@ -824,7 +856,7 @@ fn splat_through(
     medium: Option<u32>,
     mu_t: impl Fn(Option<u32>) -> f64,
     passable: &[bool],
-    outside: &[Option<u32>],
+    (inside, outside): (&[u32], &[Option<u32>]),
     value: impl Fn(Vec3A) -> Vec3A,
 ) {
     // More boundaries than this between a point and the camera: treated as blocked.
@@ -851,7 +883,7 @@ fn splat_through(
         }
         optical_depth += mu_t(m) * h.t as f64;
         let n = geo.normal(h.prim as usize);
-        m = media::after_crossing(surface, n, w, outside);
+        m = media::after_crossing(surface, n, w, inside, outside);
         let (hp, err) = geo.hit_point(&h);
         origin = geo.spawn(hp, err, h.prim, w);
         remaining = (cam.position - origin).length();

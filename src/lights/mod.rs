@@ -410,7 +410,16 @@ fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
 /// triangle the point sits on): of those around it, the one nested deepest
 /// (`Scene::surface_outside`).
 fn enclosing_dielectric(scene: &Scene, start: Vec3A, skip: u32) -> Option<u32> {
-    let crossings = scene.geometry.crossings(start, skip, scene.surfaces.len());
+    let mut crossings = scene.geometry.crossings(start, skip, scene.surfaces.len());
+    // A crossing of the face two adjacent dielectrics share crosses both.
+    let is_interface = |s: usize| scene.surface_inside[s] as usize != s;
+    for s in (0..scene.surfaces.len()).filter(|&s| is_interface(s)) {
+        let k = crossings[s];
+        crossings[scene.surface_inside[s] as usize] += k;
+        if let Some(o) = scene.surface_outside[s] {
+            crossings[o as usize] += k;
+        }
+    }
     let depth = |mut s: u32| {
         let mut d = 0;
         while let Some(o) = scene.surface_outside[s as usize] {
@@ -421,6 +430,7 @@ fn enclosing_dielectric(scene: &Scene, start: Vec3A, skip: u32) -> Option<u32> {
     (0..scene.surfaces.len() as u32)
         .filter(|&s| {
             crossings[s as usize] % 2 == 1
+                && !is_interface(s as usize)
                 && matches!(scene.material_of(s as usize), crate::scene::Material::Dielectric { .. })
         })
         .max_by_key(|&s| depth(s))

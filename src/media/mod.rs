@@ -28,12 +28,13 @@ pub fn transmittance<const SPECTRAL: bool, const N: usize>(alpha: &Spectrum, lam
 }
 
 /// The medium after a path scattered at dielectric `surface` (unit normal `n`) into unit `wi`:
-/// the dielectric's interior, opposite the normal, or what is outside it (`Scene::surface_outside`:
-/// the dielectric it is nested in, or None for the world).
+/// the interior behind it (`Scene::surface_inside`: the dielectric itself, or for the face two
+/// adjacent dielectrics share the one its normal leaves), or what is in front of it
+/// (`Scene::surface_outside`: the dielectric it is nested in or adjacent to, or None for the world).
 #[inline]
-pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A, outside: &[Option<u32>]) -> Option<u32> {
+pub fn after_crossing(surface: u32, n: Vec3A, wi: Vec3A, inside: &[u32], outside: &[Option<u32>]) -> Option<u32> {
     if wi.dot(n) < 0.0 {
-        Some(surface)
+        Some(inside[surface as usize])
     } else {
         outside[surface as usize]
     }

@@ -159,6 +159,16 @@ struct MediumSides {
 struct Dielectrics {
     volume: Vec<f64>,
     outside: Vec<Option<u32>>,
+    /// The dielectric whose interior lies behind each surface (itself, but for an interface).
+    inside: Vec<u32>,
+}
+
+/// The face two adjacent dielectrics share (`join_shared_faces`): its own surface, whose
+/// triangles are `inner`'s (normals toward `outer`) and whose two sides are their interiors.
+struct Interface {
+    surface: usize,
+    inner: usize,
+    outer: usize,
 }
 
 /// One surface or area light triangulated in metres (f64), before recentring.
@@ -226,7 +236,7 @@ impl<'s> Loader<'s> {
         let range = simulation.wavelength_range_nm;
 
         let mut media = self.media(root, range)?;
-        let (mut materials, material_index, material_medium) = self.materials(root, range, &media)?;
+        let (mut materials, material_index, mut material_medium) = self.materials(root, range, &media)?;
         let mut names = Names::default();
         let entries = self.surface_entries(root, &material_index, &mut names)?;
         let mut light_specs = self.light_specs(root, &material_index, range, &mut names)?;
@@ -237,8 +247,10 @@ impl<'s> Loader<'s> {
         let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut warnings)?;
         let point_positions = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
         let (origin_m, span_m) = bounding_centre(&shaped, &point_positions);
-        let Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys } =
+        let mut assembled =
             self.single_precision_surfaces(shaped, origin_m, span_m, light_specs.len(), &mut warnings)?;
+        let interfaces = self.join_shared_faces(&mut assembled, &mut materials, &mut material_medium)?;
+        let Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys } = assembled;
         let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
@@ -299,13 +311,14 @@ impl<'s> Loader<'s> {
             .map_err(|m| InputError::new(self.src.file, "", None, m))?;
         let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
         let sides: Vec<&MediumSides> = surfaces.iter().map(|s| &material_medium[s.material]).collect();
-        let Dielectrics { volume, outside: surface_outside } = self.check_dielectrics(
+        let Dielectrics { volume, outside: surface_outside, inside: surface_inside } = self.check_dielectrics(
             &geometry,
             &surfaces,
             &materials,
             &surface_keys,
             &sides,
             &media,
+            &interfaces,
             camera.as_ref(),
             camera_line,
         )?;
@@ -328,6 +341,7 @@ impl<'s> Loader<'s> {
             geometry,
             media,
             surface_medium,
+            surface_inside,
             surface_outside,
             effects,
             detectors,
@@ -868,6 +882,129 @@ impl<'s> Loader<'s> {
     }
 
     /// Each shape moved to the recentred origin and into single precision (triangles too thin
+    /// Adjacent dielectrics: two closed dielectric surfaces that share a face meet at coincident
+    /// triangles (the same three vertices, wound oppositely). Each such pair becomes one triangle
+    /// of a new surface "inner|outer" (the lower-numbered dielectric is inner; the triangle is
+    /// its, its normal toward the other), a dielectric with ior = inner's and outside_ior =
+    /// outer's, inner's medium behind it and outer's in front: light crossing it refracts by the
+    /// two indices and changes medium directly. Both must be smooth, untextured and unmapped.
+    fn join_shared_faces(
+        &self,
+        a: &mut Assembled,
+        materials: &mut Vec<NamedMaterial>,
+        sides: &mut Vec<MediumSides>,
+    ) -> R<Vec<Interface>> {
+        let is_dielectric =
+            |s: usize| matches!(materials[a.surfaces[s].material].material, Material::Dielectric { .. });
+        let key = |t: &[Vec3A; 3]| {
+            let mut k = t.map(|v| v.to_array().map(f32::to_bits));
+            k.sort();
+            k
+        };
+        let mut by_vertices: HashMap<[[u32; 3]; 3], Vec<usize>> = HashMap::new();
+        for (prim, t) in a.tris.iter().enumerate() {
+            if is_dielectric(a.tri_surface[prim] as usize) {
+                by_vertices.entry(key(t)).or_default().push(prim);
+            }
+        }
+        // (inner, outer) → the inner triangles kept; the outer ones are dropped.
+        let mut pairs: std::collections::BTreeMap<(usize, usize), Vec<usize>> = Default::default();
+        let mut dropped = vec![false; a.tris.len()];
+        for prims in by_vertices.values() {
+            let &[p, q] = prims.as_slice() else { continue };
+            let (sp, sq) = (a.tri_surface[p] as usize, a.tri_surface[q] as usize);
+            let normal = |t: &[Vec3A; 3]| (t[1] - t[0]).cross(t[2] - t[0]);
+            // Wound the same way the two overlap: left to the shared-face check to refuse.
+            if sp == sq || normal(&a.tris[p]).dot(normal(&a.tris[q])) >= 0.0 {
+                continue;
+            }
+            let (inner, outer, keep, drop) = if sp < sq { (sp, sq, p, q) } else { (sq, sp, q, p) };
+            pairs.entry((inner, outer)).or_default().push(keep);
+            dropped[drop] = true;
+        }
+        let mut interfaces = Vec::new();
+        for ((inner, outer), kept) in pairs {
+            let fail = |s: usize, m: String| {
+                InputError::new(self.src.file, &a.surface_keys[s].0, Some(a.surface_keys[s].1), m)
+            };
+            let (
+                Material::Dielectric { ior, absorption_per_m, roughness, scatter, .. },
+                Material::Dielectric { ior: outer_ior, roughness: r2, scatter: s2, .. },
+            ) = (&materials[a.surfaces[inner].material].material, &materials[a.surfaces[outer].material].material)
+            else {
+                unreachable!("both are dielectrics")
+            };
+            let (name_in, name_out) = (a.surfaces[inner].name.clone(), a.surfaces[outer].name.clone());
+            if roughness.is_rough() || r2.is_rough() || scatter.is_some() || s2.is_some() {
+                return Err(fail(
+                    inner,
+                    format!(
+                        "dielectric surfaces \"{name_in}\" and \"{name_out}\" share a face, and adjacent dielectrics must \
+                         both be smooth (no roughness, no scatter) for now"
+                    ),
+                ));
+            }
+            for s in [inner, outer] {
+                if a.surfaces[s].map.is_some() || a.surfaces[s].spectrum_bins.is_some() {
+                    return Err(fail(
+                        s,
+                        format!(
+                            "dielectric surfaces \"{name_in}\" and \"{name_out}\" share a face, so \"{}\" cannot carry a map \
+                             or spectrum_bins (its shared face becomes the surface \"{name_in}|{name_out}\")",
+                            a.surfaces[s].name
+                        ),
+                    ));
+                }
+            }
+            let material = Material::Dielectric {
+                ior: ior.clone(),
+                outside_ior: outer_ior.clone(),
+                absorption_per_m: absorption_per_m.clone(),
+                roughness: *roughness,
+                scatter: None,
+            };
+            let name = format!("{name_in}|{name_out}");
+            materials.push(NamedMaterial { name: name.clone(), material });
+            let (behind, ahead) = (sides[a.surfaces[inner].material].inside, sides[a.surfaces[outer].material].inside);
+            sides.push(MediumSides { inside: behind, outside: ahead, outside_line: 0 });
+            let surface = a.surfaces.len();
+            let area: f64 = kept
+                .iter()
+                .map(|&p| {
+                    let t = a.tris[p].map(|v| v.as_dvec3());
+                    0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()
+                })
+                .sum();
+            for &p in &kept {
+                a.tri_surface[p] = surface as u32;
+            }
+            a.surfaces[inner].area_m2 -= area;
+            a.surfaces[inner].triangles -= kept.len();
+            a.surfaces[outer].area_m2 -= area;
+            a.surfaces[outer].triangles -= kept.len();
+            a.surfaces.push(Surface {
+                name,
+                material: materials.len() - 1,
+                area_m2: area,
+                triangles: kept.len(),
+                light: None,
+                map: None,
+                spectrum_bins: None,
+            });
+            a.surface_keys.push(a.surface_keys[inner].clone());
+            interfaces.push(Interface { surface, inner, outer });
+        }
+        if dropped.iter().any(|&d| d) {
+            let mut k = 0;
+            a.tris.retain(|_| (!dropped[k], k += 1).0);
+            k = 0;
+            a.tri_surface.retain(|_| (!dropped[k], k += 1).0);
+            k = 0;
+            a.tri_tangent.retain(|_| (!dropped[k], k += 1).0);
+        }
+        Ok(interfaces)
+    }
+
     /// for an f32 normal dropped), with its area, irradiance map and spectrum bins.
     fn single_precision_surfaces(
         &self,
@@ -1109,37 +1246,65 @@ impl<'s> Loader<'s> {
         keys: &[(String, usize)],
         sides: &[&MediumSides],
         media: &[Medium],
+        interfaces: &[Interface],
         camera: Option<&Camera>,
         camera_line: usize,
     ) -> R<Dielectrics> {
-        let is_dielectric = |s: usize| matches!(materials[surfaces[s].material].material, Material::Dielectric { .. });
+        // Per surface: the interface it is, if it is one.
+        let mut interface_of: Vec<Option<&Interface>> = vec![None; surfaces.len()];
+        for i in interfaces {
+            interface_of[i.surface] = Some(i);
+        }
+        let is_dielectric = |s: usize| {
+            interface_of[s].is_none() && matches!(materials[surfaces[s].material].material, Material::Dielectric { .. })
+        };
         let dielectrics: Vec<usize> = (0..surfaces.len()).filter(|&s| is_dielectric(s)).collect();
         let mut volume = vec![0.0f64; surfaces.len()];
         let mut outside = vec![None; surfaces.len()];
-        if dielectrics.is_empty() {
-            return Ok(Dielectrics { volume, outside });
+        let mut inside: Vec<u32> = (0..surfaces.len() as u32).collect();
+        for i in interfaces {
+            inside[i.surface] = i.inner as u32;
+            outside[i.surface] = Some(i.outer as u32);
         }
+        if dielectrics.is_empty() {
+            return Ok(Dielectrics { volume, outside, inside });
+        }
+        // A ray's crossings of an interface are crossings of both dielectrics it parts.
+        let crossings_of = |start: Vec3A, skip: u32| {
+            let mut c = geo.crossings(start, skip, surfaces.len());
+            for i in interfaces {
+                let k = c[i.surface];
+                c[i.inner] += k;
+                c[i.outer] += k;
+            }
+            c
+        };
         let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
         // Edges by their end points' exact f32 bits: each must be used twice, once each way.
         let mut first_prim = vec![u32::MAX; surfaces.len()];
         let mut edges: HashMap<(usize, [[u32; 3]; 2]), (u32, i32)> = HashMap::new();
         for prim in 0..geo.len() {
             let s = geo.surface_of(prim) as usize;
-            if !is_dielectric(s) {
-                continue;
-            }
-            if first_prim[s] == u32::MAX {
+            // An interface's triangle bounds both its dielectrics, the outer one reversed.
+            let bounds: [(usize, i32); 2] = match interface_of[s] {
+                Some(i) => [(i.inner, 1), (i.outer, -1)],
+                None if is_dielectric(s) => [(s, 1), (usize::MAX, 0)],
+                None => continue,
+            };
+            if interface_of[s].is_none() && first_prim[s] == u32::MAX {
                 first_prim[s] = prim as u32;
             }
             let v = geo.verts(prim);
             let d = v.map(|p| p.as_dvec3());
-            volume[s] += d[0].dot(d[1].cross(d[2])) / 6.0;
-            for k in 0..3 {
-                let (a, b) = (v[k].to_array().map(f32::to_bits), v[(k + 1) % 3].to_array().map(f32::to_bits));
-                let (key, way) = if a < b { ([a, b], 1) } else { ([b, a], -1) };
-                let e = edges.entry((s, key)).or_insert((0, 0));
-                e.0 += 1;
-                e.1 += way;
+            for (s, sign) in bounds.into_iter().filter(|b| b.1 != 0) {
+                volume[s] += sign as f64 * d[0].dot(d[1].cross(d[2])) / 6.0;
+                for k in 0..3 {
+                    let (a, b) = (v[k].to_array().map(f32::to_bits), v[(k + 1) % 3].to_array().map(f32::to_bits));
+                    let (key, way) = if a < b { ([a, b], sign) } else { ([b, a], -sign) };
+                    let e = edges.entry((s, key)).or_insert((0, 0));
+                    e.0 += 1;
+                    e.1 += way;
+                }
             }
         }
         let bad: Vec<(usize, &'static str)> = edges
@@ -1196,8 +1361,9 @@ impl<'s> Loader<'s> {
                     return Err(fail(
                         s,
                         format!(
-                            "dielectric surfaces \"{}\" and \"{}\" share a face; adjacent dielectrics are not supported \
-                             yet: nest one inside the other, clear of its faces",
+                            "dielectric surfaces \"{}\" and \"{}\" share a face, but their triangles there do not match \
+                             vertex for vertex, wound oppositely: adjacent dielectrics must meet at the same \
+                             triangles (or nest one inside the other, clear of its faces)",
                             surfaces[other].name, surfaces[s].name
                         ),
                     ));
@@ -1213,7 +1379,7 @@ impl<'s> Loader<'s> {
                 }
                 let prim = first_prim[s];
                 let (p, _) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b: [1.0 / 3.0; 3] });
-                let crossings = geo.crossings(p, prim, surfaces.len());
+                let crossings = crossings_of(p, prim);
                 dielectrics.iter().copied().filter(|&d| d != s && crossings[d] % 2 == 1).collect()
             })
             .collect();
@@ -1285,12 +1451,12 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        let inside = |point: Vec3A, skip: u32, not: usize| -> Option<usize> {
-            let crossings = geo.crossings(point, skip, surfaces.len());
+        let inside_of = |point: Vec3A, skip: u32, not: usize| -> Option<usize> {
+            let crossings = crossings_of(point, skip);
             dielectrics.iter().copied().find(|&d| d != not && crossings[d] % 2 == 1)
         };
         if let Some(c) = camera {
-            if let Some(d) = inside(c.position.as_vec3a(), crate::geometry::NO_PRIM, usize::MAX) {
+            if let Some(d) = inside_of(c.position.as_vec3a(), crate::geometry::NO_PRIM, usize::MAX) {
                 return Err(InputError::new(
                     self.src.file,
                     "camera.position",
@@ -1303,7 +1469,7 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        Ok(Dielectrics { volume, outside })
+        Ok(Dielectrics { volume, outside, inside })
     }
 
     /// Scales a shape's triangles to metres. Coordinates too far out for the BVH's f32 bounds

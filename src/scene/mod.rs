@@ -395,6 +395,9 @@ pub struct Scene {
     /// Per dielectric surface nested in another, that one (directly around it): where a path
     /// that leaves it is. None for the others (their outside is the world).
     pub surface_outside: Vec<Option<u32>>,
+    /// Per surface: the dielectric whose interior lies behind it (against its normal): itself,
+    /// but for the shared face of two adjacent dielectrics (`surface_outside` the other).
+    pub surface_inside: Vec<u32>,
     pub effects: Effects,
     /// Far-field intensity detectors (`[[detectors]] type = "farfield"`).
     pub detectors: Vec<farfield::FarField>,

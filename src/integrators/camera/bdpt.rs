@@ -378,7 +378,8 @@ impl ImageKernel<'_> {
             path[index - 1].pdf_rev = to_area(pdf_rev, p, &path[index - 1]);
             pdf_dir = pdf_fwd;
             if is_dielectric {
-                medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
+                medium =
+                    media::after_crossing(surface, n, new_dir, &self.scene.surface_inside, &self.scene.surface_outside);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -544,7 +545,7 @@ impl ImageKernel<'_> {
             // camera vertex's side toward the light vertex (beyond the boundary when the camera
             // vertex sits on a rough dielectric); its transmittance, as on the sampled segments.
             let medium = if pt.on_dielectric {
-                media::after_crossing(pt.surface, pt.n, -w, &self.scene.surface_outside)
+                media::after_crossing(pt.surface, pt.n, -w, &self.scene.surface_inside, &self.scene.surface_outside)
             } else {
                 pt.medium
             };

@@ -146,7 +146,8 @@ impl ImageKernel<'_> {
             bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
             let new_dir = sampled.wi;
             if is_dielectric {
-                medium = media::after_crossing(surface, n, new_dir, &self.scene.surface_outside);
+                medium =
+                    media::after_crossing(surface, n, new_dir, &self.scene.surface_inside, &self.scene.surface_outside);
             }
             origin = geo.spawn(p, err, hit.prim, new_dir);
             dir = new_dir;
@@ -216,8 +217,9 @@ impl ImageKernel<'_> {
             * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight / lane_pdf.mean());
         // A visible light lies in the medium on `wi`'s side: the vertex's own, or beyond the
         // dielectric boundary it sits on (`crossing`). Its transmittance over the shadow segment.
-        let medium =
-            crossing.map_or(medium, |surface| media::after_crossing(surface, n, wi, &self.scene.surface_outside));
+        let medium = crossing.map_or(medium, |surface| {
+            media::after_crossing(surface, n, wi, &self.scene.surface_inside, &self.scene.surface_outside)
+        });
         let through = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), wl));
         acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * through.unwrap_or(Lanes::ONE));
     }
