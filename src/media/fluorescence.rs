@@ -67,9 +67,10 @@ pub fn absorbed_for(f: &Fluorescence, lambda_out: f64, u: f64) -> Option<(f64, f
     Some((lambda_in, weight))
 }
 
-/// A bound on the adjoint kernel's strength at λ' (per metre), q·e(λ')·F: the odds the camera
-/// integrators give a collision's re-emission branch against scattering (μs). Any positive value
-/// where the kernel is positive keeps them unbiased; under `redshift` the true strength is lower.
+/// The adjoint kernel's strength at λ' (per metre) as if re-emission drew from the whole
+/// emission spectrum, q·e(λ')·F: the odds the camera integrators give a collision's
+/// re-emission branch against scattering (μs). Any positive value where the kernel is positive
+/// keeps them unbiased; under `redshift` it is only an approximation of the true strength.
 #[inline]
 pub fn adjoint_strength(f: &Fluorescence, lambda_out: f64) -> f64 {
     f.absorption_sampler.as_ref().map_or(0.0, |a| f.quantum_yield * f.emission_sampler.pdf(lambda_out) * a.total())

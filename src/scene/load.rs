@@ -881,7 +881,6 @@ impl<'s> Loader<'s> {
         Ok(point_positions)
     }
 
-    /// Each shape moved to the recentred origin and into single precision (triangles too thin
     /// Adjacent dielectrics: two closed dielectric surfaces that share a face meet at coincident
     /// triangles (the same three vertices, wound oppositely). Each such pair becomes one triangle
     /// of a new surface "inner|outer" (the lower-numbered dielectric is inner; the triangle is
@@ -945,6 +944,16 @@ impl<'s> Loader<'s> {
                 ));
             }
             for s in [inner, outer] {
+                if a.surfaces[s].triangles == kept.len() || a.surfaces[s].light.is_some() {
+                    return Err(fail(
+                        s,
+                        format!(
+                            "dielectric surfaces \"{name_in}\" and \"{name_out}\" share all of \"{}\"'s faces: a dielectric \
+                             wholly inside another is nested, not adjacent (give it its own faces, clear of the other's)",
+                            a.surfaces[s].name
+                        ),
+                    ));
+                }
                 if a.surfaces[s].map.is_some() || a.surfaces[s].spectrum_bins.is_some() {
                     return Err(fail(
                         s,
@@ -1005,6 +1014,7 @@ impl<'s> Loader<'s> {
         Ok(interfaces)
     }
 
+    /// Each shape moved to the recentred origin and into single precision (triangles too thin
     /// for an f32 normal dropped), with its area, irradiance map and spectrum bins.
     fn single_precision_surfaces(
         &self,

@@ -23,6 +23,7 @@ use crate::media;
 use crate::media::fluorescence;
 use crate::sampling::Sampler;
 use crate::scene::{Medium, Phase};
+use crate::spectrum::Spectrum;
 
 /// The `[media]` medium inside a dielectric, at the subpath's current wavelengths (per metre).
 #[derive(Clone, Copy)]
@@ -35,8 +36,10 @@ pub(super) struct Coefficients<'m> {
 }
 
 impl Coefficients<'_> {
-    fn scatters(&self) -> bool {
-        !(self.mu_s + self.mu_f).is_zero()
+    /// Whether free flights are drawn in it: it scatters or holds a luminophore somewhere in the
+    /// range (a property of the medium, not of the sample's wavelengths).
+    fn scatters(&self, fluorescent: bool) -> bool {
+        self.medium.scattering_per_m != Spectrum::Constant(0.0) || (fluorescent && self.medium.fluorescence.is_some())
     }
 }
 
@@ -114,23 +117,29 @@ impl ImageKernel<'_> {
         &self,
         medium: Option<u32>,
         t_hit: f64,
-        wl: &Wavelengths,
+        wl: &mut Wavelengths,
         beta: &mut Lanes,
         lane_pdf: &mut Lanes,
         s: &mut Sampler,
         counters: &mut Counters,
     ) -> Option<(f64, Coefficients<'_>)> {
         let m = medium?;
-        let Some(c) = self.coefficients::<SPECTRAL>(m, wl).filter(|c| c.scatters()) else {
+        let Some(c) = self.coefficients::<SPECTRAL>(m, wl).filter(|c| c.scatters(SPECTRAL && self.fluorescent)) else {
             if let Some(t) = self.medium_transmittance::<SPECTRAL>(m, t_hit, wl) {
                 *beta *= t;
             }
             return None;
         };
         counters.free_flights += 1;
+        let lane_mis = SPECTRAL && self.lane_mis;
+        if SPECTRAL && !lane_mis {
+            // Without the MIS over lanes, lane 0's flights would miss collisions where only another
+            // lane's μt is positive: from the first flight on, lane 0 alone is kept. (The test is on
+            // the medium, not the lanes, so the decision does not depend on λ₁..λ₃.)
+            wl.terminate_secondary();
+        }
         let mu0 = c.mu_t.0[0];
         let t = media::free_flight(mu0, s.uniform());
-        let lane_mis = SPECTRAL && self.lane_mis;
         if t < t_hit {
             for k in 0..super::LANES {
                 // Tₖ/T₀ as one exponential, which neither overflows nor underflows early.

@@ -65,7 +65,9 @@ impl ImageKernel<'_> {
             let next = geo.intersect(origin, dir, f32::INFINITY, skip);
             if DIELECTRIC {
                 let t_hit = next.map_or(f64::INFINITY, |h| h.t as f64);
-                if let Some((t, c)) = self.fly::<SPECTRAL>(medium, t_hit, &wl, &mut beta, &mut lane_pdf, s, counters) {
+                if let Some((t, c)) =
+                    self.fly::<SPECTRAL>(medium, t_hit, &mut wl, &mut beta, &mut lane_pdf, s, counters)
+                {
                     // A collision in the medium: scattering or re-emission, next-event estimation
                     // with the event's phase function, then a direction from it.
                     if scatterings == self.max_scatterings {
