@@ -377,6 +377,21 @@ fn the_mcml_slab_inside_a_clear_dielectric_matches_van_de_hulst() {
     assert_near("nested MCML T_t", tt, 0.66096);
 }
 
+/// Reflectance and transmittance at normal incidence of the lossless incoherent stack of the
+/// interfaces between successive indices `n`: each Fresnel R = ((n₁ − n₂)/(n₁ + n₂))², combined
+/// as R = R₁ + T₁²R₂/(1 − R₁R₂), T = T₁T₂/(1 − R₁R₂) (lossless, so each part is symmetric).
+fn incoherent_stack(n: &[f64]) -> (f64, f64) {
+    let interface = |a: f64, b: f64| {
+        let r = ((a - b) / (a + b)).powi(2);
+        (r, 1.0 - r)
+    };
+    let combine = |(r1, t1): (f64, f64), (r2, t2): (f64, f64)| {
+        let d = 1.0 - r1 * r2;
+        (r1 + t1 * t1 * r2 / d, t1 * t2 / d)
+    };
+    n.windows(2).map(|w| interface(w[0], w[1])).reduce(combine).unwrap()
+}
+
 #[test]
 fn glass_in_water_transmits_what_the_incoherent_stack_of_four_interfaces_does() {
     // A glass plate (n 1.5, 1 cm) nested in a water box (n 1.33, 3 cm), a normal beam: every
@@ -384,14 +399,7 @@ fn glass_in_water_transmits_what_the_incoherent_stack_of_four_interfaces_does() 
     // air|water|glass|water|air. Interfaces combine as R = R₁ + T₁²R₂/(1 − R₁R₂),
     // T = T₁T₂/(1 − R₁R₂) (lossless, symmetric), with Fresnel R = ((n₁ − n₂)/(n₁ + n₂))².
     // Analog transport: each photon either passes or not, so s.e. = √(T(1 − T)/N) (z < 4).
-    let fresnel = |a: f64, b: f64| ((a - b) / (a + b)).powi(2);
-    let combine = |(r1, t1): (f64, f64), (r2, t2): (f64, f64)| {
-        let d = 1.0 - r1 * r2;
-        (r1 + t1 * t1 * r2 / d, t1 * t2 / d)
-    };
-    let iface = |a: f64, b: f64| (fresnel(a, b), 1.0 - fresnel(a, b));
-    let stack =
-        [iface(1.0, 1.33), iface(1.33, 1.5), iface(1.5, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
+    let stack = incoherent_stack(&[1.0, 1.33, 1.5, 1.33, 1.0]);
     let toml = r#"[scene]
 unit = "cm"
 
@@ -575,15 +583,8 @@ fn a_glass_plate_on_water_transmits_what_the_incoherent_stack_of_three_interface
     // T = T₁T₂/(1 − R₁R₂), Fresnel at normal incidence). Without the joined interface the
     // glass would meet air below it (two more reflections): T would be that of air|glass|air|
     // water|air instead, 0.8% lower. Analog: s.e. = √(T(1 − T)/N), |z| < 4.
-    let fresnel = |a: f64, b: f64| ((a - b) / (a + b)).powi(2);
-    let combine = |(r1, t1): (f64, f64), (r2, t2): (f64, f64)| {
-        let d = 1.0 - r1 * r2;
-        (r1 + t1 * t1 * r2 / d, t1 * t2 / d)
-    };
-    let iface = |a: f64, b: f64| (fresnel(a, b), 1.0 - fresnel(a, b));
-    let stack = [iface(1.0, 1.5), iface(1.5, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
-    let separate =
-        [iface(1.0, 1.5), iface(1.5, 1.0), iface(1.0, 1.33), iface(1.33, 1.0)].into_iter().reduce(combine).unwrap();
+    let stack = incoherent_stack(&[1.0, 1.5, 1.33, 1.0]);
+    let separate = incoherent_stack(&[1.0, 1.5, 1.0, 1.33, 1.0]);
     let toml = r#"[scene]
 unit = "cm"
 

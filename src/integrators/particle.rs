@@ -262,6 +262,11 @@ impl Kernel<'_> {
         let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
         // With such boundaries in the scene, splats look through them (`splat_through`).
         let see_through = DIELECTRIC && passable.iter().any(|&p| p);
+        let through = see_through.then_some(Through {
+            passable: &passable,
+            inside: &scene.surface_inside,
+            outside: &scene.surface_outside,
+        });
         let mu_t_at = |m: Option<u32>, lambda: f64| -> f64 {
             let Some(m) = m else { return 0.0 };
             match surface_medium[m as usize] {
@@ -309,23 +314,8 @@ impl Kernel<'_> {
                 let colour = if HERO { hero.emission_xyz() } else { birth.xyz };
                 let value = |w| colour * self.emitter.direction_pdf(birth.light, birth.axis, w);
                 let start = RayEnd { p: birth.point, err: birth.point_err, n: birth.normal, prim: birth.prim };
-                if see_through {
-                    let m = self.emitter.medium_at(birth.light, birth.prim);
-                    let mu_t = |m| mu_t_at(m, lambda);
-                    splat_through(
-                        cam,
-                        geo,
-                        film,
-                        start,
-                        m,
-                        mu_t,
-                        &passable,
-                        (&scene.surface_inside, &scene.surface_outside),
-                        value,
-                    );
-                } else {
-                    splat(cam, geo, film, start, value);
-                }
+                let m = || self.emitter.medium_at(birth.light, birth.prim);
+                splat_seen(cam, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
             }
             let mut origin = birth.origin;
             // How far the ray's origin lies ahead of the surface point it left, along the ray:
@@ -594,11 +584,11 @@ impl Kernel<'_> {
                             }
                         };
                         let start = RayEnd { p, err, n, prim: hit.prim };
-                        if see_through {
-                            // Toward the camera the photon is in its medium, or beyond the
-                            // (rough) dielectric it is on.
+                        // Toward the camera the photon is in its medium, or beyond the (rough)
+                        // dielectric it is on.
+                        let m = || {
                             let to_camera = cam.project(p).map_or(Vec3A::ZERO, |proj| proj.to_camera);
-                            let m = if is_dielectric {
+                            if is_dielectric {
                                 media::after_crossing(
                                     surface,
                                     n,
@@ -608,22 +598,9 @@ impl Kernel<'_> {
                                 )
                             } else {
                                 medium
-                            };
-                            let mu_t = |m| mu_t_at(m, lambda);
-                            splat_through(
-                                cam,
-                                geo,
-                                film,
-                                start,
-                                m,
-                                mu_t,
-                                &passable,
-                                (&scene.surface_inside, &scene.surface_outside),
-                                value,
-                            );
-                        } else {
-                            splat(cam, geo, film, start, value);
-                        }
+                            }
+                        };
+                        splat_seen(cam, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
                     }
                 }
 
@@ -827,6 +804,35 @@ impl Hero {
         (0..4).fold(Vec3A::ZERO, |acc, k| {
             acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] / d) as f32
         })
+    }
+}
+
+/// What a connection to the camera may pass: the index-matched boundaries and the media on
+/// their sides (`splat_through`).
+#[derive(Clone, Copy)]
+struct Through<'a> {
+    passable: &'a [bool],
+    inside: &'a [u32],
+    outside: &'a [Option<u32>],
+}
+
+/// A surface or emission splat: through index-matched boundaries (`splat_through`, starting in
+/// the medium `medium()`) where the scene has any, else by a plain visibility test (`splat`).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn splat_seen(
+    cam: &CameraModel,
+    geo: &Geometry,
+    film: &mut FilmBatch,
+    start: RayEnd,
+    through: Option<Through>,
+    medium: impl Fn() -> Option<u32>,
+    mu_t: impl Fn(Option<u32>) -> f64,
+    value: impl Fn(Vec3A) -> Vec3A,
+) {
+    match through {
+        Some(t) => splat_through(cam, geo, film, start, medium(), mu_t, t.passable, (t.inside, t.outside), value),
+        None => splat(cam, geo, film, start, value),
     }
 }
 
