@@ -3,6 +3,7 @@
 
 pub mod converge;
 pub mod farfield;
+pub mod info;
 pub mod maps;
 pub mod volume;
 
@@ -691,10 +692,23 @@ pub struct RunReport {
     pub warnings: Vec<String>,
 }
 
-/// Every output file of a run, into `dir` (the staging folder of an `OutputDir`). Every number
-/// is checked finite first (f64 for the tables, f32 for the EXR images and maps), so a run either
-/// writes finite results or, when its scene's magnitudes leave no finite answer, nothing.
-pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, Error> {
+/// Everything a finished run reports, computed and checked finite (f64 for the tables, f32 for
+/// the image and maps), before any file is written: what `write_run` writes and what the Python
+/// module hands out as arrays.
+pub struct RunEstimates<'a> {
+    pub flux: Flux,
+    /// run.json's contents; its `files` are filled in by `write_run`.
+    pub info: RunInfo,
+    pub image: Option<crate::detectors::film::Image>,
+    pub maps: Vec<crate::output::maps::MapEstimate>,
+    pub farfields: Vec<crate::output::farfield::FarFieldEstimate>,
+    pub volumes: Vec<crate::output::volume::VolumeEstimate<'a>>,
+    pub warnings: Vec<String>,
+}
+
+/// The estimates of a finished run. A scene whose magnitudes leave no finite answer is an error
+/// here, so a run either reports finite results or nothing.
+pub fn estimates<'a>(scene: &'a Scene, r: &RunResult) -> Result<RunEstimates<'a>, Error> {
     let flux = flux(scene, r);
     let mut info = run_info(scene, r, &flux);
     let mut warnings = Vec::new();
@@ -712,10 +726,22 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
     let image = r.film.as_ref().map(|f| f.image(r.emitted_w));
     let maps = crate::output::maps::estimates(scene, r);
     let f32_limit = " in 32-bit floats (at most 3.4e38)";
-    if let Some(image) = &image {
+    if let (Some(film), Some(image)) = (&r.film, &image) {
         let finite = |v: &f32| v.is_finite();
         if !(image.rgb.iter().all(finite) && image.xyz.iter().all(finite) && image.y_var.iter().all(finite)) {
             return Err(too_large("the image's values (or their variances)", f32_limit));
+        }
+        info.image_mean_y = Some(film.mean_y(r.emitted_w));
+        info.image_pixel_rel_error = Some(image.pixel_rel_error()).filter(|v| v.is_finite());
+        if film.film_batches() < 2 {
+            warnings.push(
+                "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
+            );
+        }
+        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
+            warnings.push(format!(
+                "some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
+            ));
         }
     }
     for m in &maps {
@@ -729,25 +755,20 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
     if let Some(v) = volumes.iter().find(|v| !v.finite()) {
         return Err(too_large(&format!("the volume detector \"{}\"", v.grid.name), ""));
     }
+    Ok(RunEstimates { flux, info, image, maps, farfields, volumes, warnings })
+}
+
+/// Every output file of a run, into `dir` (the staging folder of an `OutputDir`), after
+/// `estimates` has checked every number finite.
+pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, Error> {
+    let RunEstimates { flux, mut info, image, maps, farfields, volumes, warnings } = estimates(scene, r)?;
     let mut files = Vec::new();
     let mut wrote = |p: PathBuf| files.push(p.strip_prefix(dir).unwrap_or(&p).to_string_lossy().replace('\\', "/"));
     wrote(write_json(dir, "flux.json", &flux)?);
     wrote(write_atomic(dir, "flux.csv", flux_csv(&flux).as_bytes())?);
-    if let (Some(film), Some(image)) = (&r.film, &image) {
+    if let Some(image) = &image {
         wrote(write_exr(dir, image, r.integrator.name())?);
         wrote(write_png(dir, image)?);
-        info.image_mean_y = Some(film.mean_y(r.emitted_w));
-        info.image_pixel_rel_error = Some(image.pixel_rel_error()).filter(|v| v.is_finite());
-        if film.film_batches() < 2 {
-            warnings.push(
-                "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
-            );
-        }
-        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
-            warnings.push(format!(
-                "some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
-            ));
-        }
     }
     if !maps.is_empty() {
         let maps_dir = dir.join("maps");

@@ -338,7 +338,7 @@ impl<'s> Loader<'s> {
             surfaces,
             lights,
             camera,
-            geometry,
+            geometry: std::sync::Arc::new(geometry),
             media,
             surface_medium,
             surface_inside,

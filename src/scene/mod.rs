@@ -381,6 +381,8 @@ impl Effects {
     }
 }
 
+/// Cloned cheaply: the geometry (BVH and triangles) is shared.
+#[derive(Clone)]
 pub struct Scene {
     pub path: PathBuf,
     pub simulation: Simulation,
@@ -388,7 +390,7 @@ pub struct Scene {
     pub surfaces: Vec<Surface>,
     pub lights: Vec<Light>,
     pub camera: Option<Camera>,
-    pub geometry: Geometry,
+    pub geometry: std::sync::Arc<Geometry>,
     /// Participating media (`[media]`), and per surface the one filling a dielectric's inside.
     pub media: Vec<Medium>,
     pub surface_medium: Vec<Option<u32>>,
