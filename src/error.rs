@@ -76,8 +76,41 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// before it is read, so no input can exhaust memory.
 pub const MAX_INPUT_BYTES: u64 = 1 << 30;
 
+/// FNV-1a, 64 bit, continuing from `h`: a digest to tell inputs apart (not a cryptographic one).
+pub fn fnv1a(h: u64, bytes: &[u8]) -> u64 {
+    bytes.iter().fold(h, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3))
+}
+
+/// FNV-1a's starting value.
+pub const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+
+thread_local! {
+    /// While a scene loads (`digest_inputs`), the digest of every input file read so far.
+    static INPUT_DIGEST: std::cell::Cell<Option<u64>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `load` (a scene's load, on this thread) and returns with its result a digest of `text`
+/// and of every input file it read (`read_input`): what a partial run's state is checked against,
+/// so that parts of different scenes, meshes or spectra are never merged.
+pub fn digest_inputs<T>(text: &str, load: impl FnOnce() -> T) -> (T, u64) {
+    let outer = INPUT_DIGEST.with(|d| d.replace(Some(fnv1a(FNV_OFFSET, text.as_bytes()))));
+    let result = load();
+    let digest = INPUT_DIGEST.with(|d| d.replace(outer)).unwrap_or(FNV_OFFSET);
+    (result, digest)
+}
+
 /// The bytes of an input file, at most `MAX_INPUT_BYTES`. `what` names it in messages.
 pub fn read_input(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
+    let bytes = read_input_bytes(path, what)?;
+    INPUT_DIGEST.with(|d| {
+        if let Some(h) = d.get() {
+            d.set(Some(fnv1a(fnv1a(h, &(bytes.len() as u64).to_le_bytes()), &bytes)));
+        }
+    });
+    Ok(bytes)
+}
+
+fn read_input_bytes(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
     use std::io::Read;
     let fail = |e: std::io::Error| InputError::new(path, "", None, format!("cannot read {what}: {e}"));
     let file = std::fs::File::open(path).map_err(fail)?;

@@ -56,9 +56,30 @@ enum Command {
         /// Skip the camera image.
         #[arg(long = "no-image")]
         no_image: bool,
+        /// Trace only batches A to B−1 (of 16384 photons each) and write, beside the usual
+        /// files, their mergeable state.photon for `photon merge`.
+        #[arg(long, value_name = "A..B", value_parser = parse_batches)]
+        batches: Option<(u64, u64)>,
         #[command(flatten)]
         transport: TransportArgs,
         /// No progress bar and no table.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Merge partial runs (`photon run --batches A..B`) into the outputs of one run: parts
+    /// covering batches 0..N write what `photon run --photons N·16384` writes.
+    #[command(after_help = EXIT_STATUS)]
+    Merge {
+        /// The parts: their output folders (or their state.photon files), in any order.
+        #[arg(required = true)]
+        parts: Vec<PathBuf>,
+        /// Output folder [default: out/<scene-stem>/].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The scene file, if it has moved since the parts ran [default: the path they recorded].
+        #[arg(long)]
+        scene: Option<PathBuf>,
+        /// No table.
         #[arg(long)]
         quiet: bool,
     },
@@ -137,6 +158,13 @@ impl TransportArgs {
     }
 }
 
+/// `A..B`: batches A (inclusive) to B (exclusive).
+fn parse_batches(s: &str) -> Result<(u64, u64), String> {
+    let (a, b) = s.split_once("..").ok_or_else(|| format!("expected A..B (e.g. 0..64), found \"{s}\""))?;
+    let number = |x: &str| x.trim().parse::<u64>().map_err(|_| format!("\"{x}\" is not a batch number in \"{s}\""));
+    Ok((number(a)?, number(b)?))
+}
+
 /// Set by Ctrl-C, SIGTERM or SIGHUP: the run stops and writes what it has.
 static INTERRUPT: AtomicBool = AtomicBool::new(false);
 
@@ -179,6 +207,7 @@ fn main() -> ExitCode {
             time,
             max_bounces,
             no_image,
+            batches,
             quiet,
             transport,
         } => {
@@ -194,10 +223,12 @@ fn main() -> ExitCode {
                 no_image,
                 integrator: transport.integrator,
                 transport: transport.options(),
+                batches,
             };
             run(&scene, out, &opts, quiet)
         }
         Command::Info { scene } => info(&scene).map(|()| Outcome::Complete),
+        Command::Merge { parts, out, scene, quiet } => merge(&parts, out, scene, quiet),
         Command::Validate { quick, threads } => validate(quick, threads),
         Command::Converge { scene, tally, budget, reference, out, seed, threads, transport, no_image } => {
             let opts = RunOptions {
@@ -229,7 +260,7 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
     // and every output file's name in the output folder.
     let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
     let image = scene.camera.is_some() && scene.effects.camera;
-    let staged = output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image))?;
+    let staged = output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image, opts.batches.is_some()))?;
     let result = simulate(&scene, opts, &chosen, &INTERRUPT)?;
     let report = output::write_run(staged.path(), &scene, &result)?;
     staged.commit(&output::previous_run_files(&out_dir))?;
@@ -244,6 +275,39 @@ fn run(scene_path: &Path, out: Option<PathBuf>, opts: &RunOptions, quiet: bool) 
         StopReason::Interrupted => Outcome::Interrupted,
         _ => Outcome::Complete,
     })
+}
+
+fn merge(
+    part_paths: &[PathBuf],
+    out: Option<PathBuf>,
+    scene_path: Option<PathBuf>,
+    quiet: bool,
+) -> Result<Outcome, Error> {
+    let parts = part_paths.iter().map(|p| output::state::read_part(p)).collect::<Result<Vec<_>, _>>()?;
+    let parts = output::state::check_parts(parts)?;
+    let h = parts[0].header.clone();
+    let scene_path = scene_path.unwrap_or_else(|| PathBuf::from(&h.scene_absolute));
+    let mut scene = load_warn(&scene_path)?;
+    // The parts' options, as `apply_options` set them for their runs.
+    scene.simulation.seed = h.seed;
+    scene.simulation.max_bounces = h.max_bounces;
+    scene.simulation.integrator = h.integrator;
+    scene.effects.camera &= h.image;
+    let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
+    let image = scene.camera.is_some() && scene.effects.camera;
+    let staged = output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image, false))?;
+    let result = output::state::merge(&scene, &parts)?;
+    let report = output::write_run(staged.path(), &scene, &result)?;
+    staged.commit(&output::previous_run_files(&out_dir))?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !quiet {
+        println!("merged {} parts: batches {}..{}", parts.len(), result.batches.0, result.batches.1);
+        print!("{}", output::summary_table(&report.flux, &report.info));
+        println!("wrote {}: {}", out_dir.display(), report.files.join(", "));
+    }
+    Ok(Outcome::Complete)
 }
 
 fn validate(quick: bool, threads: Option<usize>) -> Result<Outcome, Error> {

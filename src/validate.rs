@@ -109,7 +109,10 @@ pub fn run_all(
     interrupt: &AtomicBool,
     on_case: &mut dyn FnMut(&CaseResult),
 ) -> Result<(Vec<CaseResult>, bool), Error> {
-    let dir = std::env::temp_dir().join(format!("photon-validate-{}", std::process::id()));
+    // The counter keeps two validations of one process (Python threads) apart.
+    static RUNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = RUNS.fetch_add(1, Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("photon-validate-{}-{n}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| Error::Other(format!("cannot create {}: {e}", dir.display())))?;
     let ctx = Ctx {
         dir: dir.clone(),

@@ -1226,7 +1226,7 @@ fn check_outputs(scene: &Scene, result: &photon::run::RunResult, out_dir: &Path,
         signature: format!("{what} fails"),
         detail: format!("{what}: {e}"),
     };
-    let names = photon::output::run_file_names(scene, result.film.is_some());
+    let names = photon::output::run_file_names(scene, result.film.is_some(), false);
     let staged = match photon::output::OutputDir::prepare(out_dir, &names) {
         Ok(s) => s,
         Err(e) => return findings.push(late("preparing the output folder", &e)),

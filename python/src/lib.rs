@@ -3,6 +3,7 @@
 //! through the same estimates (`photon::output`), so every number equals the CLI's bit for bit.
 //! The Python package `photon` (python/photon/) re-exports these names.
 
+use std::ffi::CString;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -10,9 +11,11 @@ use std::time::{Duration, Instant};
 
 use numpy::IntoPyArray;
 use pyo3::create_exception;
-use pyo3::exceptions::{PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{
+    PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyUserWarning, PyValueError,
+};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PySlice, PyString, PyTuple};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyMapping, PySlice, PyString, PyTuple};
 
 use photon::error::Error;
 use photon::integrators::particle::{Estimator, TransportOptions};
@@ -115,10 +118,19 @@ fn table_to_py<'py>(py: Python<'py>, t: &toml::Table) -> PyResult<Bound<'py, PyD
     Ok(d)
 }
 
-/// A Python value as TOML: bool, int, float (numpy scalars too), str, list or tuple, dict with
-/// str keys. `at` names the key in messages.
-fn py_to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
+/// Deepest nesting of lists and mappings accepted: deeper (or a dict that contains itself) would
+/// overflow the stack.
+const MAX_DEPTH: usize = 64;
+
+/// A Python value as TOML: bool, int, float (numpy scalars too), str, list or tuple, a mapping
+/// with str keys. `at` names the key in messages; `depth` counts the containers around it.
+fn py_to_toml(v: &Bound<'_, PyAny>, at: &str, depth: usize) -> PyResult<toml::Value> {
     use toml::Value;
+    if depth > MAX_DEPTH {
+        return Err(PyValueError::new_err(format!(
+            "{at}: nested more than {MAX_DEPTH} levels deep (does a dict or list contain itself?)"
+        )));
+    }
     if v.is_instance_of::<PyBool>() {
         return Ok(Value::Boolean(v.extract()?));
     }
@@ -134,20 +146,22 @@ fn py_to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
     if let Ok(s) = v.cast::<PyString>() {
         return Ok(Value::String(s.to_str()?.to_string()));
     }
-    if let Ok(d) = v.cast::<PyDict>() {
-        return Ok(Value::Table(dict_to_table(d, at)?));
+    if let Ok(d) = v.cast::<PyMapping>() {
+        return Ok(Value::Table(mapping_to_table(d, at, depth + 1)?));
     }
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
         let mut a = Vec::new();
         for (i, x) in v.try_iter()?.enumerate() {
-            a.push(py_to_toml(&x?, &format!("{at}[{i}]"))?);
+            a.push(py_to_toml(&x?, &format!("{at}[{i}]"), depth + 1)?);
         }
         return Ok(Value::Array(a));
     }
-    // numpy arrays and scalars: integers first (numpy's ints convert through __index__).
+    // numpy arrays and scalars become Python lists and numbers (counted as a level, so a
+    // `tolist` that returns itself ends too).
     if v.hasattr("tolist")? {
-        return py_to_toml(&v.call_method0("tolist")?, at);
+        return py_to_toml(&v.call_method0("tolist")?, at, depth + 1);
     }
+    // Other integers (through __index__) before floats, so they stay integers.
     if let Ok(i) = v.extract::<i64>() {
         return Ok(Value::Integer(i));
     }
@@ -160,15 +174,20 @@ fn py_to_toml(v: &Bound<'_, PyAny>, at: &str) -> PyResult<toml::Value> {
     )))
 }
 
-fn dict_to_table(d: &Bound<'_, PyDict>, at: &str) -> PyResult<toml::Table> {
+/// A mapping as a TOML table. None values are dropped: TOML has no null, so a key set to None
+/// is a key left out.
+fn mapping_to_table(d: &Bound<'_, PyMapping>, at: &str, depth: usize) -> PyResult<toml::Table> {
     let mut t = toml::Table::new();
-    for (k, x) in d.iter() {
-        let key: String = k.extract().map_err(|_| PyTypeError::new_err(format!("{at}: keys must be str")))?;
+    for kv in d.items()?.iter() {
+        let (k, x): (Bound<'_, PyAny>, Bound<'_, PyAny>) = kv.extract()?;
+        let key: String = k.extract().map_err(|_| {
+            PyTypeError::new_err(format!("{}: keys must be str", if at.is_empty() { "the scene" } else { at }))
+        })?;
         let path = if at.is_empty() { key.clone() } else { format!("{at}.{key}") };
         if x.is_none() {
             continue;
         }
-        t.insert(key, py_to_toml(&x, &path)?);
+        t.insert(key, py_to_toml(&x, &path, depth)?);
     }
     Ok(t)
 }
@@ -180,24 +199,29 @@ fn set_path(root: &mut toml::Table, key: &str, value: Option<toml::Value>) -> Py
     if steps.iter().any(|s| s.is_empty()) {
         return Err(PyKeyError::new_err(format!("{key}: an empty step in the key path")));
     }
+    set_steps(root, &steps, value).map_err(|m| PyKeyError::new_err(format!("{key}: {m}")))
+}
+
+fn set_steps(root: &mut toml::Table, steps: &[&str], value: Option<toml::Value>) -> Result<(), String> {
     let mut table = root;
-    for (i, step) in steps.iter().enumerate() {
-        let last = i + 1 == steps.len();
-        if last {
+    let mut i = 0;
+    loop {
+        let step = steps[i];
+        if i + 1 == steps.len() {
             match value {
                 Some(v) => {
                     table.insert(step.to_string(), v);
                 }
                 None => {
-                    table.remove(*step);
+                    table.remove(step);
                 }
             }
             return Ok(());
         }
         let here = steps[..=i].join(".");
         let entry = table.entry(step.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        table = match entry {
-            toml::Value::Table(t) => t,
+        let (next, taken) = match entry {
+            toml::Value::Table(t) => (t, 1),
             toml::Value::Array(items) => {
                 let pick = steps[i + 1];
                 let names: Vec<String> =
@@ -207,10 +231,7 @@ fn set_path(root: &mut toml::Table, key: &str, value: Option<toml::Value>) -> Py
                     .position(|x| x.get("name").and_then(|n| n.as_str()) == Some(pick))
                     .or_else(|| pick.parse::<usize>().ok().filter(|&k| k < items.len()))
                     .ok_or_else(|| {
-                        PyKeyError::new_err(format!(
-                            "{key}: `{here}` has no entry named (or numbered) `{pick}`; its names: {}",
-                            names.join(", ")
-                        ))
+                        format!("`{here}` has no entry named (or numbered) `{pick}`; its names: {}", names.join(", "))
                     })?;
                 if i + 2 == steps.len() {
                     // The whole entry: replace (a dict) or remove it.
@@ -222,38 +243,38 @@ fn set_path(root: &mut toml::Table, key: &str, value: Option<toml::Value>) -> Py
                     }
                     return Ok(());
                 }
-                return set_path_in(items[k].as_table_mut(), key, &steps[i + 2..], value, &format!("{here}.{pick}"));
+                match items[k].as_table_mut() {
+                    Some(t) => (t, 2),
+                    None => return Err(format!("`{here}.{pick}` is not a table")),
+                }
             }
-            _ => return Err(PyKeyError::new_err(format!("{key}: `{here}` is a value, not a table"))),
+            _ => return Err(format!("`{here}` is a value, not a table")),
         };
+        table = next;
+        i += taken;
     }
-    Ok(())
-}
-
-fn set_path_in(
-    table: Option<&mut toml::Table>,
-    key: &str,
-    rest: &[&str],
-    value: Option<toml::Value>,
-    here: &str,
-) -> PyResult<()> {
-    let table = table.ok_or_else(|| PyKeyError::new_err(format!("{key}: `{here}` is not a table")))?;
-    set_path(table, &rest.join("."), value)
-        .map_err(|e| Python::attach(|py| PyKeyError::new_err(format!("{key}: {}", e.value(py)))))
 }
 
 /// Runs `work` on its own thread with the GIL released, waking every 20 ms to let Python handle
-/// signals and to call `tick` (the progress bar). A signal's exception (KeyboardInterrupt) sets
-/// `interrupt`, which the work polls, and is handed back once the work has ended.
+/// signals and to call `tick` (the progress bar, printing). A signal's exception
+/// (KeyboardInterrupt), or one `tick` raises (a Ctrl-C can land inside it), sets `interrupt`,
+/// which the work polls, and is handed back once the work has ended; `tick` is not called again
+/// after it raised.
 fn interruptible<'py, T: Send>(
     py: Python<'py>,
     interrupt: &AtomicBool,
     work: impl FnOnce() -> T + Send,
-    mut tick: impl FnMut(Python<'py>),
+    mut tick: impl FnMut(Python<'py>) -> PyResult<()>,
 ) -> PyResult<(T, Option<PyErr>)> {
     std::thread::scope(|s| {
-        let handle = s.spawn(work);
+        // The stack the command line's main thread has (8 MiB), not a spawned thread's 2 MiB.
+        let handle = std::thread::Builder::new()
+            .name("photon-run".into())
+            .stack_size(8 << 20)
+            .spawn_scoped(s, work)
+            .map_err(|e| PyRuntimeError::new_err(format!("photon: cannot start the run's thread: {e}")))?;
         let mut raised = None;
+        let mut ticking = true;
         while !handle.is_finished() {
             py.detach(|| {
                 let start = Instant::now();
@@ -267,7 +288,13 @@ fn interruptible<'py, T: Send>(
                     raised = Some(e);
                 }
             }
-            tick(py);
+            if ticking {
+                if let Err(e) = tick(py) {
+                    ticking = false;
+                    interrupt.store(true, Ordering::Relaxed);
+                    raised.get_or_insert(e);
+                }
+            }
         }
         match handle.join() {
             Ok(t) => Ok((t, raised)),
@@ -276,18 +303,43 @@ fn interruptible<'py, T: Send>(
     })
 }
 
+/// The exception `raised` during a run or validation once the work has ended: a
+/// KeyboardInterrupt becomes RunInterrupted with `result` (None when there is none), chained to
+/// `cause` (what went wrong after it); any other exception is raised as it is.
+fn stopped(
+    py: Python<'_>,
+    raised: PyErr,
+    message: &str,
+    result: Option<Bound<'_, PyAny>>,
+    cause: Option<PyErr>,
+) -> PyErr {
+    if !raised.is_instance_of::<PyKeyboardInterrupt>(py) {
+        return raised;
+    }
+    let err = RunInterrupted::new_err(message.to_string());
+    if let Err(e) = err.value(py).setattr("result", result.unwrap_or_else(|| py.None().into_bound(py))) {
+        return e;
+    }
+    err.set_cause(py, cause);
+    err
+}
+
 /// The progress bar of `run(progress=True)`: tqdm's when it is installed, else one line on
-/// sys.stderr redrawn in place.
+/// sys.stderr redrawn in place. Exceptions from drawing are the caller's (an interrupt).
 struct Bar<'py> {
     tqdm: Option<Bound<'py, PyAny>>,
     total: Option<u64>,
     shown: u64,
+    /// Whether the fallback line was drawn (and so needs its newline).
+    drew: bool,
     start: Instant,
 }
 
 impl<'py> Bar<'py> {
-    fn new(py: Python<'py>, total: Option<u64>) -> Self {
-        let tqdm = py.import("tqdm.auto").and_then(|m| {
+    /// tqdm's bar, or the fallback when tqdm is missing or fails with an Exception; a
+    /// KeyboardInterrupt (any BaseException but Exception) is raised.
+    fn new(py: Python<'py>, total: Option<u64>) -> PyResult<Self> {
+        let made = py.import("tqdm.auto").and_then(|m| {
             let kw = PyDict::new(py);
             kw.set_item("total", total)?;
             kw.set_item("unit", "photon")?;
@@ -295,18 +347,23 @@ impl<'py> Bar<'py> {
             kw.set_item("desc", "photon")?;
             m.getattr("tqdm")?.call((), Some(&kw))
         });
-        Bar { tqdm: tqdm.ok(), total, shown: 0, start: Instant::now() }
+        let tqdm = match made {
+            Ok(t) => Some(t),
+            Err(e) if e.is_instance_of::<PyException>(py) => None,
+            Err(e) => return Err(e),
+        };
+        Ok(Bar { tqdm, total, shown: 0, drew: false, start: Instant::now() })
     }
 
-    fn update(&mut self, py: Python<'py>, photons: u64) {
+    fn update(&mut self, py: Python<'py>, photons: u64) -> PyResult<()> {
         if photons == self.shown {
-            return;
+            return Ok(());
         }
-        let step = photons - self.shown;
+        let step = photons.saturating_sub(self.shown);
         self.shown = photons;
         if let Some(t) = &self.tqdm {
-            let _ = t.call_method1("update", (step,));
-            return;
+            t.call_method1("update", (step,))?;
+            return Ok(());
         }
         let secs = self.start.elapsed().as_secs_f64();
         let line = match self.total {
@@ -315,30 +372,32 @@ impl<'py> Bar<'py> {
             }
             None => format!("\rphoton: {photons} photons  {secs:.1} s"),
         };
-        if let Ok(err) = py.import("sys").and_then(|s| s.getattr("stderr")) {
-            let _ = err.call_method1("write", (line,));
-            let _ = err.call_method0("flush");
+        let err = py.import("sys")?.getattr("stderr")?;
+        // pythonw and some embedders have no stderr: nothing to draw on.
+        if err.is_none() {
+            return Ok(());
         }
+        self.drew = true;
+        err.call_method1("write", (line,))?;
+        err.call_method0("flush")?;
+        Ok(())
     }
 
-    fn close(self, py: Python<'py>) {
-        match &self.tqdm {
-            Some(t) => {
-                let _ = t.call_method0("close");
-            }
-            None => {
-                if let Ok(err) = py.import("sys").and_then(|s| s.getattr("stderr")) {
-                    let _ = err.call_method1("write", ("\n",));
-                }
-            }
+    fn close(self, py: Python<'py>) -> PyResult<()> {
+        if let Some(t) = &self.tqdm {
+            t.call_method0("close")?;
+        } else if self.drew {
+            py.import("sys")?.getattr("stderr")?.call_method1("write", ("\n",))?;
         }
+        Ok(())
     }
 }
 
-fn warn(py: Python<'_>, message: &str) {
-    if let Ok(w) = py.import("warnings") {
-        let _ = w.call_method1("warn", (message, py.get_type::<pyo3::exceptions::PyUserWarning>(), 3));
-    }
+/// Issues a UserWarning. Stack level 1 is the Python line that called into this module (native
+/// code has no frame); under `-W error` the warning's exception is returned.
+fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
+    let text = CString::new(message.replace('\0', " ")).map_err(|e| PyRuntimeError::new_err(e.to_string()))?;
+    PyErr::warn(py, &py.get_type::<PyUserWarning>(), &text, 1)
 }
 
 /// A loaded, checked scene. Make one with `photon.load(path)`, `photon.loads(text)` or
@@ -348,15 +407,33 @@ struct PyScene {
     scene: Arc<photon::scene::Scene>,
     /// The TOML text it was loaded from.
     text: String,
+    /// `scene.path` made absolute when first loaded: reloads (with_overrides) resolve relative
+    /// file paths from its folder whatever the current directory is by then.
+    file: PathBuf,
 }
 
-fn load_text(py: Python<'_>, path: &Path, text: String) -> PyResult<PyScene> {
-    let loaded = py.detach(|| photon::scene::load_str(path, &text));
-    let scene = loaded.map_err(|e| py_err(py, e))?;
+/// Loads `text` as the scene file `path` (the path shown: run.json's `scene`, messages),
+/// resolving its relative file paths from the folder of `file`.
+fn load_text(py: Python<'_>, path: &Path, file: &Path, text: String) -> PyResult<PyScene> {
+    let loaded = py.detach(|| photon::scene::load_str(file, &text));
+    let mut scene = loaded.map_err(|e| {
+        py_err(
+            py,
+            match e {
+                Error::Input(mut ie) if ie.file == file => {
+                    ie.file = path.to_path_buf();
+                    Error::Input(ie)
+                }
+                e => e,
+            },
+        )
+    })?;
+    scene.path = path.to_path_buf();
     for w in &scene.warnings {
-        warn(py, w);
+        warn(py, w)?;
     }
-    Ok(PyScene { scene: Arc::new(scene), text })
+    let file = std::path::absolute(file).unwrap_or_else(|_| file.to_path_buf());
+    Ok(PyScene { scene: Arc::new(scene), text, file })
 }
 
 fn parse_table(py: Python<'_>, scene: &PyScene) -> PyResult<toml::Table> {
@@ -366,10 +443,78 @@ fn parse_table(py: Python<'_>, scene: &PyScene) -> PyResult<toml::Table> {
     })
 }
 
-fn from_table(py: Python<'_>, path: &Path, table: &toml::Table) -> PyResult<PyScene> {
-    let text =
-        toml::to_string(table).map_err(|e| PyValueError::new_err(format!("cannot write the scene as TOML: {e}")))?;
-    load_text(py, path, text)
+fn table_text(table: &toml::Table) -> PyResult<String> {
+    toml::to_string(table).map_err(|e| PyValueError::new_err(format!("cannot write the scene as TOML: {e}")))
+}
+
+/// `loads`' and `from_dict`'s scene path, base_dir/name.toml; `name` is a file name's stem.
+fn named_path(base_dir: &Path, name: &str) -> PyResult<PathBuf> {
+    if name.is_empty() || name.contains(['/', '\\', '\0']) || name.contains("..") {
+        return Err(PyValueError::new_err(format!(
+            "name must be a file name without a folder (no '/', '\\' or '..'), got {name:?}"
+        )));
+    }
+    Ok(base_dir.join(format!("{name}.toml")))
+}
+
+/// An integer argument in lo..=hi: an int (numpy's too) or a float with an integral value
+/// (1e6). Out of range is a ValueError, not an int at all a TypeError; both name the argument.
+fn int_arg(v: &Bound<'_, PyAny>, name: &str, what: &str, lo: u64, hi: u64) -> PyResult<u64> {
+    let got = || v.repr().map(|r| r.to_string()).unwrap_or_else(|_| "?".into());
+    let bad = || PyValueError::new_err(format!("{name} must be {what}, got {}", got()));
+    let not_int = || {
+        let kind = v.get_type().name().map(|n| n.to_string()).unwrap_or_default();
+        PyTypeError::new_err(format!("{name} must be {what}, got a {kind}: {}", got()))
+    };
+    if v.is_instance_of::<PyBool>() {
+        return Err(not_int());
+    }
+    let n: i128 = if let Ok(n) = v.extract::<i128>() {
+        n
+    } else if v.is_instance_of::<PyInt>() {
+        return Err(bad());
+    } else if let Ok(f) = v.extract::<f64>() {
+        if f.fract() != 0.0 {
+            return Err(bad());
+        }
+        f as i128
+    } else {
+        return Err(not_int());
+    };
+    if n < lo as i128 || n > hi as i128 {
+        return Err(bad());
+    }
+    Ok(n as u64)
+}
+
+/// `apply_options`' messages name the command line's flags: any it still gives (a check added
+/// there later) names run's arguments instead.
+fn python_names(e: Error) -> Error {
+    match e {
+        Error::Usage(mut m) => {
+            for (flag, arg) in [
+                ("--photons", "photons"),
+                ("--seed", "seed"),
+                ("--threads", "threads"),
+                ("--max-bounces", "max_bounces"),
+                ("--rel-error", "rel_error"),
+                ("--time", "time"),
+                ("--tally", "tally"),
+                ("--integrator", "integrator"),
+                ("--no-image", "image=False"),
+            ] {
+                m = m.replace(flag, arg);
+            }
+            Error::Usage(m)
+        }
+        e => e,
+    }
+}
+
+fn threads_arg(v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>> {
+    let max = photon::run::MAX_THREADS;
+    v.map(|v| int_arg(v, "threads", &format!("an integer between 1 and {max}"), 1, max as u64).map(|t| t as usize))
+        .transpose()
 }
 
 #[pymethods]
@@ -377,17 +522,20 @@ impl PyScene {
     /// Simulate the scene and return a Result (tallies, ledger, image, maps, ...).
     ///
     /// Every argument left None takes the scene's `[simulation]` value, as on the command line
-    /// (`photon run`): photons (default 1 000 000; with rel_error or time, the most to trace),
-    /// seed, threads (all cores; results never depend on it), rel_error (stop when every tallied
-    /// surface, or those in `tally`, reaches this relative standard error), time (stop at this
-    /// budget in seconds), integrator ("light", "path" or "bdpt": what makes the image),
-    /// max_bounces. image=False skips the camera image. estimator "auto" | "expected" | "analog",
-    /// stratified and hero are the transport options of `photon run` (`--no-hero` is hero=False).
+    /// (`photon run`): photons (default 1 000 000; with rel_error or time, the most to trace; an
+    /// int, or an integral float such as 1e6), seed, threads (all cores; results never depend
+    /// on it), rel_error (stop when every tallied surface, or those in `tally`, reaches this
+    /// relative standard error), time (stop at this budget in seconds), integrator ("light",
+    /// "path" or "bdpt": what makes the image), max_bounces. image=False skips the camera image.
+    /// estimator "auto" | "expected" | "analog", stratified and hero are the transport options
+    /// of `photon run` (`--no-hero` is hero=False). A value out of range raises ValueError.
     ///
     /// Same scene, seed and photons give the same numbers as `photon run`, bit for bit. The GIL is
     /// released while photons are traced. Ctrl-C stops the run at the next batch (within a
     /// fraction of a second) and raises photon.RunInterrupted, a KeyboardInterrupt whose
-    /// `result` holds what was traced. progress=True shows a progress bar (tqdm's if installed).
+    /// `result` holds what was traced (None if no Result could be made of it; the reason is its
+    /// __cause__). progress=True shows a progress bar (tqdm's if installed); an exception from
+    /// drawing it stops the run the same way.
     #[pyo3(signature = (photons=None, seed=None, threads=None, rel_error=None, time=None, integrator=None,
                         image=true, progress=false, tally=None, max_bounces=None, estimator="auto",
                         stratified=false, hero=true))]
@@ -395,20 +543,54 @@ impl PyScene {
     fn run(
         &self,
         py: Python<'_>,
-        photons: Option<u64>,
-        seed: Option<u64>,
-        threads: Option<usize>,
+        photons: Option<&Bound<'_, PyAny>>,
+        seed: Option<&Bound<'_, PyAny>>,
+        threads: Option<&Bound<'_, PyAny>>,
         rel_error: Option<f64>,
         time: Option<f64>,
         integrator: Option<&str>,
         image: bool,
         progress: bool,
         tally: Option<Vec<String>>,
-        max_bounces: Option<u32>,
+        max_bounces: Option<&Bound<'_, PyAny>>,
         estimator: &str,
         stratified: bool,
         hero: bool,
     ) -> PyResult<PyRunResult> {
+        // The checks of `apply_options`, made here first so messages name these arguments, not
+        // the command line's flags.
+        let photons = photons.map(|v| int_arg(v, "photons", "a positive integer", 1, u64::MAX)).transpose()?;
+        let seed = seed
+            .map(|v| int_arg(v, "seed", &format!("an integer between 0 and {}", u64::MAX), 0, u64::MAX))
+            .transpose()?;
+        let threads = threads_arg(threads)?;
+        let max_bounces = max_bounces
+            .map(|v| {
+                let what = format!("an integer between 0 and {}", u32::MAX);
+                int_arg(v, "max_bounces", &what, 0, u32::MAX as u64).map(|b| b as u32)
+            })
+            .transpose()?;
+        for (name, value) in [("rel_error", rel_error), ("time", time)] {
+            if let Some(x) = value.filter(|x| !(*x > 0.0 && x.is_finite())) {
+                return Err(PyValueError::new_err(format!("{name} must be a positive number, got {x}")));
+            }
+        }
+        let tally = tally.unwrap_or_default();
+        for name in &tally {
+            let s = &self.scene;
+            if !s.surfaces.iter().any(|x| &x.name == name) && !s.media.iter().any(|m| &m.name == name) {
+                let surfaces: Vec<&str> = s.surfaces.iter().map(|x| x.name.as_str()).collect();
+                let media: Vec<&str> = s.media.iter().map(|m| m.name.as_str()).collect();
+                let media = if media.is_empty() { String::new() } else { format!("; media: {}", media.join(", ")) };
+                return Err(PyValueError::new_err(format!(
+                    "tally: no surface or medium is named {name:?}; surfaces: {}{media}",
+                    surfaces.join(", ")
+                )));
+            }
+        }
+        if !tally.is_empty() && rel_error.is_none() {
+            return Err(PyValueError::new_err("tally only makes sense with rel_error"));
+        }
         let integrator = match integrator {
             None => None,
             Some(s) => Some(photon::integrators::camera::Integrator::parse(s).ok_or_else(|| {
@@ -431,16 +613,17 @@ impl PyScene {
             threads,
             max_bounces,
             rel_error,
-            tallies: tally.unwrap_or_default(),
+            tallies: tally,
             time_s: time,
             // The command line's bar draws on a terminal only; this one draws wherever Python does.
             progress: false,
             no_image: !image,
             integrator,
             transport: TransportOptions { estimator, stratified, hero },
+            ..RunOptions::default()
         };
         let mut scene = (*self.scene).clone();
-        let chosen = photon::run::apply_options(&mut scene, &opts).map_err(|e| py_err(py, e))?;
+        let chosen = photon::run::apply_options(&mut scene, &opts).map_err(|e| py_err(py, python_names(e)))?;
         let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
         let total = match opts.photons {
             Some(p) => Some(p),
@@ -449,8 +632,8 @@ impl PyScene {
         };
         let interrupt = AtomicBool::new(false);
         let merged = AtomicU64::new(0);
-        let mut bar = progress.then(|| Bar::new(py, total));
-        let (simulated, raised) = interruptible(
+        let mut bar = if progress { Some(Bar::new(py, total)?) } else { None };
+        let outcome = interruptible(
             py,
             &interrupt,
             || {
@@ -458,28 +641,43 @@ impl PyScene {
                     merged.store(p.tallies.photons, Ordering::Relaxed)
                 })
             },
-            |py| {
-                if let Some(b) = bar.as_mut() {
-                    b.update(py, merged.load(Ordering::Relaxed));
-                }
+            |py| match bar.as_mut() {
+                Some(b) => b.update(py, merged.load(Ordering::Relaxed)),
+                None => Ok(()),
             },
-        )?;
-        if let Some(b) = bar {
-            b.close(py);
+        );
+        // The bar ends at the final count and is closed on every path; what it raises then
+        // counts as an interrupt too.
+        let drawn = bar.map(|mut b| {
+            let count = match &outcome {
+                Ok((Ok(r), _)) => r.tallies.photons,
+                _ => merged.load(Ordering::Relaxed),
+            };
+            let updated = b.update(py, count);
+            updated.and(b.close(py))
+        });
+        let (simulated, mut raised) = outcome?;
+        if let Some(Err(e)) = drawn {
+            raised.get_or_insert(e);
         }
+        let message = "stopped by Ctrl-C: `.result` holds the batches traced before it";
         let run = match simulated {
             Ok(r) => r,
-            Err(e) => return Err(raised.unwrap_or_else(|| py_err(py, e))),
-        };
-        let result = PyRunResult::new(py, Arc::new(scene), run)?;
-        match raised {
-            None => Ok(result),
-            Some(e) if e.is_instance_of::<PyKeyboardInterrupt>(py) => {
-                let err = RunInterrupted::new_err("stopped by Ctrl-C: `.result` holds the batches traced before it");
-                err.value(py).setattr("result", Py::new(py, result)?)?;
-                Err(err)
+            Err(e) => {
+                return Err(match raised {
+                    Some(r) => stopped(py, r, message, None, Some(py_err(py, e))),
+                    None => py_err(py, e),
+                })
             }
-            Some(e) => Err(e),
+        };
+        let made = PyRunResult::new(py, Arc::new(scene), run);
+        match (made, raised) {
+            (made, None) => made,
+            (Ok(result), Some(r)) => {
+                let result = Bound::new(py, result)?.into_any();
+                Err(stopped(py, r, message, Some(result), None))
+            }
+            (Err(e), Some(r)) => Err(stopped(py, r, message, None, Some(e))),
         }
     }
 
@@ -501,22 +699,25 @@ impl PyScene {
         table_to_py(py, &parse_table(py, self)?)
     }
 
-    /// A new Scene with some values replaced, given as {dotted key: value}. Keys follow the
-    /// scene file: "simulation.photons", "materials.white.reflectance", "lights.lamp.power_w".
-    /// A step into an array of tables (surfaces, lights, detectors) picks the entry by its name
-    /// or its index ("surfaces.0.material"). A value None removes the key; a missing table is
-    /// created. Relative file paths keep resolving against the original scene's folder.
+    /// A new Scene with some values replaced, given as a mapping {dotted key: value}. Keys
+    /// follow the scene file: "simulation.photons", "materials.white.reflectance",
+    /// "lights.lamp.power_w". A step into an array of tables (surfaces, lights, detectors) picks
+    /// the entry by its name or its index ("surfaces.0.material"). A value None removes the key
+    /// (or the entry); a missing table is created; values may be nested mappings and lists.
+    /// Relative file paths keep resolving against the original scene's folder (also after a
+    /// change of the current directory). A key naming no entry raises KeyError.
     ///
     ///     for r in [0.2, 0.5, 0.8]:
     ///         res = scene.with_overrides({"materials.white.reflectance": r}).run(photons=100_000)
-    fn with_overrides(&self, py: Python<'_>, overrides: &Bound<'_, PyDict>) -> PyResult<PyScene> {
+    fn with_overrides(&self, py: Python<'_>, overrides: &Bound<'_, PyMapping>) -> PyResult<PyScene> {
         let mut table = parse_table(py, self)?;
-        for (k, v) in overrides.iter() {
+        for kv in overrides.items()?.iter() {
+            let (k, v): (Bound<'_, PyAny>, Bound<'_, PyAny>) = kv.extract()?;
             let key: String = k.extract().map_err(|_| PyTypeError::new_err("override keys must be str"))?;
-            let value = if v.is_none() { None } else { Some(py_to_toml(&v, &key)?) };
+            let value = if v.is_none() { None } else { Some(py_to_toml(&v, &key, 0)?) };
             set_path(&mut table, &key, value)?;
         }
-        from_table(py, &self.scene.path, &table)
+        load_text(py, &self.scene.path, &self.file, table_text(&table)?)
     }
 
     /// The scene's TOML text (for a Scene made by with_overrides or from_dict, the text written
@@ -553,10 +754,14 @@ impl PyScene {
 
 /// The outcome of Scene.run: the numbers of flux.json and run.json, and the image, maps, far
 /// fields and volume grids as numpy arrays. `save(dir)` writes exactly what `photon run` writes.
-#[pyclass(module = "photon", name = "Result")]
+#[pyclass(module = "photon", name = "Result", frozen)]
 struct PyRunResult {
     scene: Arc<photon::scene::Scene>,
     run: RunResult,
+    /// flux.json and run.json's contents (the image's mean Y and pixel error included), for
+    /// summary().
+    flux: output::Flux,
+    info: output::RunInfo,
     flux_json: Py<PyAny>,
     run_info: Py<PyAny>,
     image: Option<Py<PyAny>>,
@@ -569,133 +774,184 @@ struct PyRunResult {
     warnings: Vec<String>,
 }
 
-/// (value, s.e.) pairs as two numpy arrays of `shape`, texel k at row-major position `order(k)`.
-fn split_pairs<'py>(
-    py: Python<'py>,
+/// One detector's entries in the order they are handed out: float64 arrays, then plain values.
+struct Entries {
+    name: String,
+    arrays: Vec<(String, ndarray::ArrayD<f64>)>,
+    values: Vec<(&'static str, Option<Vec<f64>>)>,
+}
+
+/// Everything of a Result that takes work, made with the GIL released.
+struct Made {
+    flux: output::Flux,
+    info: output::RunInfo,
+    warnings: Vec<String>,
+    /// rgb [H, W, 3], xyz [H, W, 3], y_var [H, W].
+    image: Option<(ndarray::Array3<f32>, ndarray::Array3<f32>, ndarray::Array2<f32>)>,
+    maps: Vec<Entries>,
+    farfields: Vec<Entries>,
+    volumes: Vec<Entries>,
+}
+
+/// (value, s.e.) pairs as two arrays of `shape`, texel k at row-major position `order(k)`.
+fn split_pairs(
     pairs: &[(f64, f64)],
     shape: &[usize],
     order: impl Fn(usize) -> usize,
-) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+) -> Result<(ndarray::ArrayD<f64>, ndarray::ArrayD<f64>), Error> {
     let n = pairs.len();
     let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
     for (k, &(x, s)) in pairs.iter().enumerate() {
         a[order(k)] = x;
         b[order(k)] = s;
     }
-    let arr = |v: Vec<f64>| -> PyResult<Bound<'py, PyAny>> {
-        let a = ndarray::ArrayD::from_shape_vec(shape.to_vec(), v)
-            .map_err(|e| PyRuntimeError::new_err(format!("array shape: {e}")))?;
-        Ok(a.into_pyarray(py).into_any())
+    let arr = |v: Vec<f64>| {
+        ndarray::ArrayD::from_shape_vec(shape.to_vec(), v).map_err(|e| Error::Other(format!("array shape: {e}")))
     };
     Ok((arr(a)?, arr(b)?))
 }
 
+/// The coordinate as the user wrote it, as `photon info` shows it: 12 significant digits drop
+/// the rounding of the recentring (1.2999999999999998 -> 1.3).
+fn round_shown(x: f64) -> f64 {
+    format!("{x:.11e}").parse().unwrap_or(x)
+}
+
+fn make(scene: &photon::scene::Scene, run: &RunResult) -> Result<Made, Error> {
+    let est = output::estimates(scene, run)?;
+    let image = match est.image {
+        Some(im) => {
+            let (w, h) = (im.width, im.height);
+            let shape_err = |e: ndarray::ShapeError| Error::Other(format!("image shape: {e}"));
+            // Moved, not copied: rgb is [H, W, 3] already; xyz (pixel, channel) and y_var
+            // (pixel) are row-major over the pixels, so only their shapes change.
+            let xyz = im.xyz.into_shape_with_order((h, w, 3)).map_err(shape_err)?;
+            let y_var = ndarray::Array2::from_shape_vec((h, w), im.y_var).map_err(shape_err)?;
+            Some((im.rgb, xyz, y_var))
+        }
+        None => None,
+    };
+    let with_stderr = |arrays: &mut Vec<(String, ndarray::ArrayD<f64>)>, name: &str, (v, se)| {
+        arrays.push((name.to_string(), v));
+        arrays.push((format!("{name}_stderr"), se));
+    };
+    let mut maps = Vec::new();
+    for m in &est.maps {
+        let [nu, nv] = m.resolution;
+        // Row 0 is the largest v, as in maps/<surface>.exr: imshow shows what the PNG shows.
+        let flip = |k: usize| (nv - 1 - k / nu) * nu + k % nu;
+        let mut arrays = Vec::new();
+        for (name, values) in [
+            ("irradiance_w_m2", m.irradiance_w_m2()),
+            ("illuminance_lx", m.illuminance_lx()),
+            ("flux_w", m.flux_w.clone()),
+            ("flux_lm", m.flux_lm.clone()),
+        ] {
+            with_stderr(&mut arrays, name, split_pairs(&values, &[nv, nu], flip)?);
+        }
+        let area: Vec<(f64, f64)> = m.texel_area_m2.iter().map(|&a| (a, 0.0)).collect();
+        arrays.push(("texel_area_m2".into(), split_pairs(&area, &[nv, nu], flip)?.0));
+        let values = vec![("size_m", m.size_m.map(|s| s.to_vec()))];
+        maps.push(Entries { name: m.surface.clone(), arrays, values });
+    }
+    let mut farfields = Vec::new();
+    for e in &est.farfields {
+        let [ng, nc] = e.detector.resolution;
+        let mut parts: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
+        for j in 0..nc {
+            for i in 0..ng {
+                let (w, cd) = e.intensity(i, j);
+                parts[0].push(w);
+                parts[1].push(cd);
+            }
+        }
+        let mut arrays = Vec::new();
+        // [C, γ] like the CSV's rows: C slowest.
+        for (name, values) in [("intensity_w_sr", &parts[0]), ("intensity_cd", &parts[1])] {
+            with_stderr(&mut arrays, name, split_pairs(values, &[nc, ng], |k| k)?);
+        }
+        let gamma: Vec<(f64, f64)> = (0..ng)
+            .map(|i| {
+                let (g0, g1, _) = e.detector.bin_angles(i, 0);
+                (g0, g1)
+            })
+            .collect();
+        let (g0, g1) = split_pairs(&gamma, &[ng], |k| k)?;
+        arrays.push(("gamma_lo_deg".into(), g0));
+        arrays.push(("gamma_hi_deg".into(), g1));
+        let c: Vec<(f64, f64)> = (0..nc).map(|j| (e.detector.bin_angles(0, j).2, 0.0)).collect();
+        arrays.push(("c_deg".into(), split_pairs(&c, &[nc], |k| k)?.0));
+        let sr: Vec<(f64, f64)> = (0..ng).map(|i| (e.detector.solid_angle_sr(i), 0.0)).collect();
+        arrays.push(("solid_angle_sr".into(), split_pairs(&sr, &[ng], |k| k)?.0));
+        farfields.push(Entries { name: e.detector.name.clone(), arrays, values: Vec::new() });
+    }
+    let mut volumes = Vec::new();
+    for v in &est.volumes {
+        let [nx, ny, nz] = v.grid.resolution;
+        let mut arrays = Vec::new();
+        // [z, y, x], as volume_<name>.npy's planes.
+        for (name, values) in [("absorbed_w_m3", &v.absorbed_w_m3), ("fluence_w_m2", &v.fluence_w_m2)] {
+            with_stderr(&mut arrays, name, split_pairs(values, &[nz, ny, nx], |k| k)?);
+        }
+        // The grid's corners in the scene file's coordinates and units.
+        let corner = |p| {
+            let p = scene.file_coordinates(p);
+            Some(vec![round_shown(p.x), round_shown(p.y), round_shown(p.z)])
+        };
+        let values = vec![("min", corner(v.grid.min)), ("max", corner(v.grid.max))];
+        volumes.push(Entries { name: v.grid.name.clone(), arrays, values });
+    }
+    Ok(Made { flux: est.flux, info: est.info, warnings: est.warnings, image, maps, farfields, volumes })
+}
+
+fn entries_to_py<'py>(py: Python<'py>, all: Vec<Entries>) -> PyResult<Py<PyDict>> {
+    let out = PyDict::new(py);
+    for e in all {
+        let d = PyDict::new(py);
+        for (name, a) in e.arrays {
+            d.set_item(name, a.into_pyarray(py))?;
+        }
+        for (name, v) in e.values {
+            d.set_item(name, v)?;
+        }
+        out.set_item(e.name, d)?;
+    }
+    Ok(out.unbind())
+}
+
 impl PyRunResult {
     fn new(py: Python<'_>, scene: Arc<photon::scene::Scene>, run: RunResult) -> PyResult<Self> {
-        let est = output::estimates(&scene, &run).map_err(|e| py_err(py, e))?;
-        for w in &est.warnings {
-            warn(py, w);
+        let made = py.detach(|| make(&scene, &run)).map_err(|e| py_err(py, e))?;
+        for w in &made.warnings {
+            warn(py, w)?;
         }
-        let flux_json = serialize_to_py(py, &est.flux)?.unbind();
-        let run_info = serialize_to_py(py, &est.info)?.unbind();
+        let flux_json = serialize_to_py(py, &made.flux)?.unbind();
+        let run_info = serialize_to_py(py, &made.info)?.unbind();
         let (mut image, mut xyz, mut y, mut y_var) = (None, None, None, None);
-        if let Some(im) = est.image {
-            let (w, h) = (im.width, im.height);
-            let shape_err = |e: ndarray::ShapeError| PyRuntimeError::new_err(format!("image shape: {e}"));
-            // Moved into numpy, not copied: rgb is [H, W, 3] already; xyz (pixel, channel) and
-            // y_var (pixel) are row-major over the pixels, so only their shapes change.
-            image = Some(im.rgb.into_pyarray(py).into_any().unbind());
-            let xyz_arr = im.xyz.into_shape_with_order((h, w, 3)).map_err(shape_err)?.into_pyarray(py);
+        if let Some((rgb, xyz_a, var)) = made.image {
+            // Into numpy without a copy; y is a view into xyz.
+            image = Some(rgb.into_pyarray(py).into_any().unbind());
+            let xyz_arr = xyz_a.into_pyarray(py);
             let full = PySlice::full(py);
             y = Some(xyz_arr.as_any().get_item((full.clone(), full, 1))?.unbind());
             xyz = Some(xyz_arr.into_any().unbind());
-            let var = ndarray::Array2::from_shape_vec((h, w), im.y_var).map_err(shape_err)?;
             y_var = Some(var.into_pyarray(py).into_any().unbind());
         }
-        let maps = PyDict::new(py);
-        for m in &est.maps {
-            let [nu, nv] = m.resolution;
-            // Row 0 is the largest v, as in maps/<surface>.exr: imshow shows what the PNG shows.
-            let flip = |k: usize| (nv - 1 - k / nu) * nu + k % nu;
-            let d = PyDict::new(py);
-            for (name, values) in [
-                ("irradiance_w_m2", m.irradiance_w_m2()),
-                ("illuminance_lx", m.illuminance_lx()),
-                ("flux_w", m.flux_w.clone()),
-                ("flux_lm", m.flux_lm.clone()),
-            ] {
-                let (v, se) = split_pairs(py, &values, &[nv, nu], flip)?;
-                d.set_item(name, v)?;
-                d.set_item(format!("{name}_stderr"), se)?;
-            }
-            let area: Vec<(f64, f64)> = m.texel_area_m2.iter().map(|&a| (a, 0.0)).collect();
-            d.set_item("texel_area_m2", split_pairs(py, &area, &[nv, nu], flip)?.0)?;
-            d.set_item("size_m", m.size_m)?;
-            maps.set_item(&m.surface, d)?;
-        }
-        let farfield = PyDict::new(py);
-        for e in &est.farfields {
-            let [ng, nc] = e.detector.resolution;
-            let mut parts: [Vec<(f64, f64)>; 2] = [Vec::new(), Vec::new()];
-            for j in 0..nc {
-                for i in 0..ng {
-                    let (w, cd) = e.intensity(i, j);
-                    parts[0].push(w);
-                    parts[1].push(cd);
-                }
-            }
-            let d = PyDict::new(py);
-            // [C, γ] like the CSV's rows: C slowest.
-            for (name, values) in [("intensity_w_sr", &parts[0]), ("intensity_cd", &parts[1])] {
-                let (v, se) = split_pairs(py, values, &[nc, ng], |k| k)?;
-                d.set_item(name, v)?;
-                d.set_item(format!("{name}_stderr"), se)?;
-            }
-            let gamma: Vec<(f64, f64)> = (0..ng)
-                .map(|i| {
-                    let (g0, g1, _) = e.detector.bin_angles(i, 0);
-                    (g0, g1)
-                })
-                .collect();
-            let (g0, g1) = split_pairs(py, &gamma, &[ng], |k| k)?;
-            d.set_item("gamma_lo_deg", g0)?;
-            d.set_item("gamma_hi_deg", g1)?;
-            let c: Vec<(f64, f64)> = (0..nc).map(|j| (e.detector.bin_angles(0, j).2, 0.0)).collect();
-            d.set_item("c_deg", split_pairs(py, &c, &[nc], |k| k)?.0)?;
-            let sr: Vec<(f64, f64)> = (0..ng).map(|i| (e.detector.solid_angle_sr(i), 0.0)).collect();
-            d.set_item("solid_angle_sr", split_pairs(py, &sr, &[ng], |k| k)?.0)?;
-            farfield.set_item(&e.detector.name, d)?;
-        }
-        let volumes = PyDict::new(py);
-        for v in &est.volumes {
-            let [nx, ny, nz] = v.grid.resolution;
-            let d = PyDict::new(py);
-            // [z, y, x], as volume_<name>.npy's planes.
-            for (name, values) in [("absorbed_w_m3", &v.absorbed_w_m3), ("fluence_w_m2", &v.fluence_w_m2)] {
-                let (a, se) = split_pairs(py, values, &[nz, ny, nx], |k| k)?;
-                d.set_item(name, a)?;
-                d.set_item(format!("{name}_stderr"), se)?;
-            }
-            // The grid's corners in the scene file's coordinates and units.
-            let (lo, hi) = (scene.file_coordinates(v.grid.min), scene.file_coordinates(v.grid.max));
-            d.set_item("min", [lo.x, lo.y, lo.z])?;
-            d.set_item("max", [hi.x, hi.y, hi.z])?;
-            volumes.set_item(&v.grid.name, d)?;
-        }
-        let warnings = est.warnings;
         Ok(PyRunResult {
             scene,
             run,
+            flux: made.flux,
+            info: made.info,
             flux_json,
             run_info,
             image,
             xyz,
             y,
             y_var,
-            maps: maps.unbind(),
-            farfield: farfield.unbind(),
-            volumes: volumes.unbind(),
-            warnings,
+            maps: entries_to_py(py, made.maps)?,
+            farfield: entries_to_py(py, made.farfields)?,
+            volumes: entries_to_py(py, made.volumes)?,
+            warnings: made.warnings,
         })
     }
 }
@@ -795,33 +1051,31 @@ impl PyRunResult {
     }
 
     /// Writes into `dir` exactly the files `photon run --out dir` writes (flux.json, flux.csv,
-    /// run.json, image.exr/png, maps/, far-field and volume files), staged and moved into place
-    /// whole. Returns the list of files written.
-    fn save(&mut self, py: Python<'_>, dir: PathBuf) -> PyResult<Vec<String>> {
+    /// run.json, image.exr/png, maps/, far-field and volume files), staged in a hidden folder and
+    /// moved into place whole; files an earlier run there listed and this one does not write are
+    /// removed, nothing else is touched. Returns the list of files written (also run_info's
+    /// `files`). The GIL is released while writing; saves from several threads may run at once.
+    fn save(&self, py: Python<'_>, dir: PathBuf) -> PyResult<Vec<String>> {
         let image = self.run.film.is_some();
         let (scene, run) = (&self.scene, &self.run);
         let written = py.detach(|| -> Result<Vec<String>, Error> {
-            let staged = output::OutputDir::prepare(&dir, &output::run_file_names(scene, image))?;
+            let staged = output::OutputDir::prepare(&dir, &output::run_file_names(scene, image, false))?;
             let report = output::write_run(staged.path(), scene, run)?;
             staged.commit(&output::previous_run_files(&dir))?;
             Ok(report.files)
         });
-        let files = written.map_err(|e| py_err(py, e))?;
+        let files = written.map_err(|e| match e {
+            // The library names the command line's flag; here the folder is save's argument.
+            Error::Usage(m) if m.starts_with("--out ") => PyValueError::new_err(format!("save: dir {}", &m[6..])),
+            e => py_err(py, e),
+        })?;
         self.run_info.bind(py).set_item("files", files.clone())?;
         Ok(files)
     }
 
     /// The table `photon run` prints at the end.
-    fn summary(&self, py: Python<'_>) -> PyResult<String> {
-        let flux = output::flux(&self.scene, &self.run);
-        let _ = py;
-        let mut info = output::run_info(&self.scene, &self.run, &flux);
-        if let Some(film) = &self.run.film {
-            info.image_mean_y = Some(film.mean_y(self.run.emitted_w));
-            info.image_pixel_rel_error =
-                Some(film.image(self.run.emitted_w).pixel_rel_error()).filter(|v| v.is_finite());
-        }
-        Ok(output::summary_table(&flux, &info))
+    fn summary(&self) -> String {
+        output::summary_table(&self.flux, &self.info)
     }
 
     /// Whether the run was stopped early by Ctrl-C.
@@ -841,28 +1095,34 @@ impl PyRunResult {
 }
 
 /// Loads and checks a scene file (TOML). Bad input raises photon.SceneError naming the file,
-/// key and line.
+/// key and line. Relative file paths in it (meshes, spectra, IES files) resolve against the
+/// scene file's folder, also in later with_overrides after a change of directory.
 #[pyfunction]
 fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
     let text = photon::error::read_utf8(&path, "the scene file").map_err(|e| py_err(py, e.into()))?;
-    load_text(py, &path, text)
+    load_text(py, &path, &path, text)
 }
 
 /// Loads a scene from TOML text. Relative file paths in it resolve against `base_dir`; the
-/// scene is named `name` (its output folder, plot titles and messages: base_dir/name.toml).
+/// scene is named `name` (its output folder, plot titles and messages: base_dir/name.toml);
+/// `name` must be a file name's stem (no '/', '\' or '..': ValueError).
 #[pyfunction]
 #[pyo3(signature = (toml_text, base_dir=PathBuf::from("."), name="scene"))]
 fn loads(py: Python<'_>, toml_text: String, base_dir: PathBuf, name: &str) -> PyResult<PyScene> {
-    load_text(py, &base_dir.join(format!("{name}.toml")), toml_text)
+    let path = named_path(&base_dir, name)?;
+    load_text(py, &path, &path, toml_text)
 }
 
-/// Makes a scene from nested dicts and lists in the scene file's layout (see Scene.to_dict);
-/// `base_dir` and `name` as for loads.
+/// Makes a scene from nested mappings (dicts) and lists in the scene file's layout (see
+/// Scene.to_dict); `base_dir` and `name` as for loads. TOML has no null: a key whose value is
+/// None is left out (as if absent); None inside a list is a TypeError. Nesting deeper than 64
+/// levels (a dict that contains itself) is a ValueError.
 #[pyfunction]
 #[pyo3(signature = (scene, base_dir=PathBuf::from("."), name="scene"))]
-fn from_dict(py: Python<'_>, scene: &Bound<'_, PyDict>, base_dir: PathBuf, name: &str) -> PyResult<PyScene> {
-    let table = dict_to_table(scene, "")?;
-    from_table(py, &base_dir.join(format!("{name}.toml")), &table)
+fn from_dict(py: Python<'_>, scene: &Bound<'_, PyMapping>, base_dir: PathBuf, name: &str) -> PyResult<PyScene> {
+    let path = named_path(&base_dir, name)?;
+    let table = mapping_to_table(scene, "", 0)?;
+    load_text(py, &path, &path, table_text(&table)?)
 }
 
 /// Runs the built-in closed-form validation cases (what `photon validate` runs) and returns
@@ -871,27 +1131,33 @@ fn from_dict(py: Python<'_>, scene: &Bound<'_, PyDict>, base_dir: PathBuf, name:
 /// photon.RunInterrupted.
 #[pyfunction]
 #[pyo3(signature = (quick=true, threads=None, verbose=false))]
-fn validate<'py>(py: Python<'py>, quick: bool, threads: Option<usize>, verbose: bool) -> PyResult<Bound<'py, PyDict>> {
-    if threads.is_some_and(|t| t == 0 || t > photon::run::MAX_THREADS) {
-        return Err(PyValueError::new_err(format!("threads must be between 1 and {}", photon::run::MAX_THREADS)));
-    }
+fn validate<'py>(
+    py: Python<'py>,
+    quick: bool,
+    threads: Option<&Bound<'py, PyAny>>,
+    verbose: bool,
+) -> PyResult<Bound<'py, PyDict>> {
+    let threads = threads_arg(threads)?;
     let interrupt = AtomicBool::new(false);
     let lines = std::sync::Mutex::new(Vec::<String>::new());
-    let print = |py: Python<'py>, lines: &std::sync::Mutex<Vec<String>>| {
+    let print = |py: Python<'py>, lines: &std::sync::Mutex<Vec<String>>| -> PyResult<()> {
         let new: Vec<String> = lines.lock().map(|mut l| l.drain(..).collect()).unwrap_or_default();
         if verbose && !new.is_empty() {
-            if let Ok(out) = py.import("sys").and_then(|s| s.getattr("stdout")) {
-                for l in new {
-                    let _ = out.call_method1("write", (l,));
-                }
-                let _ = out.call_method0("flush");
+            let out = py.import("sys")?.getattr("stdout")?;
+            if out.is_none() {
+                return Ok(());
             }
+            for l in new {
+                out.call_method1("write", (l,))?;
+            }
+            out.call_method0("flush")?;
         }
+        Ok(())
     };
     if verbose {
         lines.lock().map(|mut l| l.push(photon::validate::header())).ok();
     }
-    let (ran, raised) = interruptible(
+    let (ran, mut raised) = interruptible(
         py,
         &interrupt,
         || {
@@ -903,17 +1169,16 @@ fn validate<'py>(py: Python<'py>, quick: bool, threads: Option<usize>, verbose: 
         },
         |py| print(py, &lines),
     )?;
-    print(py, &lines);
-    let (cases, complete) = ran.map_err(|e| py_err(py, e))?;
-    if let Some(e) = raised {
-        return Err(if e.is_instance_of::<PyKeyboardInterrupt>(py) {
-            let err = RunInterrupted::new_err("validation stopped by Ctrl-C");
-            err.value(py).setattr("result", py.None())?;
-            err
-        } else {
-            e
-        });
+    if let Err(e) = print(py, &lines) {
+        raised.get_or_insert(e);
     }
+    let message = "validation stopped by Ctrl-C";
+    let (cases, complete) = match (ran, raised) {
+        (Ok(done), None) => done,
+        (Err(e), None) => return Err(py_err(py, e)),
+        (Ok(_), Some(r)) => return Err(stopped(py, r, message, None, None)),
+        (Err(e), Some(r)) => return Err(stopped(py, r, message, None, Some(py_err(py, e)))),
+    };
     let list = PyList::empty(py);
     for c in &cases {
         let d = PyDict::new(py);

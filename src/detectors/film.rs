@@ -22,6 +22,7 @@
 use glam::Vec3A;
 use ndarray::{Array2, Array3};
 
+use super::exact::ExactSum;
 use crate::scene::Camera;
 
 pub struct CameraModel {
@@ -173,43 +174,90 @@ impl FilmBatch {
     }
 }
 
-/// The run's film: splats merged in batch order into f64 sums, plus, per film batch b of n_b
-/// photons with pixel sums S_b, Σ S_b²/n_b for each pixel's Y and for the whole image's Y.
-/// Camera integrators add a second part: per pixel the sum of its own samples' values, ΣY² and
-/// the sample count; that part's pixel value is the samples' mean and its variance the sample
-/// variance over the count (pixels are independent there: each sample touches one pixel).
+/// The run's film: per pixel the exact sums (`exact`) of each transport batch's XYZ, and, per
+/// film batch b of n_b photons with pixel sums S_b, Σ S_b²/n_b for each pixel's Y and for the
+/// whole image's Y. Camera integrators add a second part: per pixel the sum of its own samples'
+/// values, ΣY² and the sample count; that part's pixel value is the samples' mean and its
+/// variance the sample variance over the count (pixels are independent there: each sample
+/// touches one pixel). Exact sums make the film the same for any grouping of its batches.
 pub struct Film {
     pub width: usize,
     pub height: usize,
-    xyz_sum: Array2<f64>,
-    y_sq_over_n: Vec<f64>,
-    image_y_sq_over_n: f64,
+    pixels: Vec<PixelSums>,
+    image_y_sq_over_n: ExactSum,
     photons: u64,
     film_batches: u64,
-    /// Scratch for one film batch's per-pixel Y, and the pixels it touched.
+    /// Scratch for one transport batch: per pixel its XYZ and Σ S_b²/n_b over its film batches,
+    /// and one film batch's Y; the pixels each touched.
+    batch: Vec<[f64; 4]>,
+    batch_touched: Vec<u32>,
     scratch_y: Vec<f64>,
     touched: Vec<u32>,
     camera: Option<CameraPart>,
 }
 
+/// One pixel's exact sums: X, Y, Z, and Y's square term.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSums(pub [ExactSum; 4]);
+
+impl PixelSums {
+    #[inline]
+    fn add(&mut self, v: [f64; 4]) {
+        for (s, x) in self.0.iter_mut().zip(v) {
+            s.add(x);
+        }
+    }
+
+    fn add_sums(&mut self, o: &PixelSums) {
+        for (s, x) in self.0.iter_mut().zip(&o.0) {
+            s.add_sum(x);
+        }
+    }
+
+    fn values(&self) -> [f64; 4] {
+        self.0.map(|s| s.value())
+    }
+}
+
+#[derive(Clone)]
 struct CameraPart {
-    xyz_sum: Array2<f64>,
-    y_sq: Vec<f64>,
+    /// XYZ and ΣY² of the pixel's samples.
+    sums: Vec<PixelSums>,
     count: Vec<u32>,
 }
 
 impl CameraPart {
+    fn new(pixels: usize) -> Self {
+        CameraPart { sums: vec![PixelSums::default(); pixels], count: vec![0; pixels] }
+    }
+
     /// (mean XYZ, variance of the mean Y) of pixel `p`; no samples give zeros, one sample no variance.
     fn pixel(&self, p: usize) -> ([f64; 3], f64) {
         let n = self.count[p] as f64;
         if n == 0.0 {
             return ([0.0; 3], 0.0);
         }
-        let s = self.xyz_sum.row(p);
-        let mean_y = s[1] / n;
-        let var = if n > 1.0 { (self.y_sq[p] / n - mean_y * mean_y).max(0.0) / (n - 1.0) } else { 0.0 };
-        ([s[0] / n, mean_y, s[2] / n], var)
+        let [x, y, z, y_sq] = self.sums[p].values();
+        let mean_y = y / n;
+        // Samples are f32: a spread below f32's resolution of the mean is their rounding of one
+        // radiance (every sample seeing the same emitter), and the rest the sums' rounding.
+        let spread = y_sq / n - mean_y * mean_y;
+        let resolution = f32::EPSILON as f64 * mean_y;
+        let var = if n > 1.0 && spread > resolution * resolution { spread / (n - 1.0) } else { 0.0 };
+        ([x / n, mean_y, z / n], var)
     }
+}
+
+/// A film's exact state, for partial runs and ranks to exchange (`Film::state`, `Film::from_state`).
+pub struct FilmState {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<PixelSums>,
+    pub image_y_sq_over_n: ExactSum,
+    pub photons: u64,
+    pub film_batches: u64,
+    /// The camera integrators' part: per pixel sums and sample counts.
+    pub camera: Option<(Vec<PixelSums>, Vec<u32>)>,
 }
 
 /// The finished image: per pixel linear XYZ and RGB radiance, and Y's variance.
@@ -238,11 +286,12 @@ impl Film {
         Film {
             width,
             height,
-            xyz_sum: Array2::zeros((pixels, 3)),
-            y_sq_over_n: vec![0.0; pixels],
-            image_y_sq_over_n: 0.0,
+            pixels: vec![PixelSums::default(); pixels],
+            image_y_sq_over_n: ExactSum::default(),
             photons: 0,
             film_batches: 0,
+            batch: vec![[0.0; 4]; pixels],
+            batch_touched: Vec::new(),
             scratch_y: vec![0.0; pixels],
             touched: Vec::new(),
             camera: None,
@@ -254,44 +303,41 @@ impl Film {
         self.camera.as_ref().map(|c| c.count.iter().copied().min().unwrap_or(0))
     }
 
-    /// Adds one transport batch of `photons` photons. Called in batch order.
+    /// Adds one transport batch of `photons` photons, in any order of batches.
     pub fn merge(&mut self, b: &FilmBatch, photons: u64) {
         if !b.samples.is_empty() {
             let pixels = self.width * self.height;
-            let cam = self.camera.get_or_insert_with(|| CameraPart {
-                xyz_sum: Array2::zeros((pixels, 3)),
-                y_sq: vec![0.0; pixels],
-                count: vec![0; pixels],
-            });
+            let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
             for (i, v) in b.samples.iter().enumerate() {
                 let p = ((b.first_sample + i as u64) % pixels as u64) as usize;
-                let mut acc = cam.xyz_sum.row_mut(p);
-                acc[0] += v[0] as f64;
-                acc[1] += v[1] as f64;
-                acc[2] += v[2] as f64;
-                cam.y_sq[p] += v[1] as f64 * v[1] as f64;
+                let (x, y, z) = (v[0] as f64, v[1] as f64, v[2] as f64);
+                cam.sums[p].add([x, y, z, y * y]);
                 cam.count[p] += 1;
             }
         }
         let sub = FILM_BATCH_PHOTONS as u64;
         let splats = &b.splats[..];
         let mut next = 0;
-        // Plain slices: this loop runs once per splat (millions per second) on the merging thread.
-        let xyz_sum = self.xyz_sum.as_slice_mut().expect("the film's XYZ sums are one standard-layout block");
+        let batch = &mut self.batch[..];
         let scratch_y = &mut self.scratch_y[..];
+        let mut batch_image_y_sq = 0.0;
         for k in 0..photons.div_ceil(sub) {
             let n = sub.min(photons - k * sub) as f64;
             let mut image_y = 0.0;
+            // Plain slices: this loop runs once per splat (millions per second) on the merging thread.
             while let Some(sp) = splats.get(next).filter(|sp| (sp.photon as u64) < (k + 1) * sub) {
                 // Splats land on random pixels, so nearly every one misses the cache: ask for a
                 // later splat's pixel now, so that the misses overlap instead of queueing.
                 if let Some(ahead) = splats.get(next + MERGE_PREFETCH_DISTANCE) {
-                    prefetch(&xyz_sum[3 * ahead.pixel as usize]);
+                    prefetch(&batch[ahead.pixel as usize]);
                     prefetch(&scratch_y[ahead.pixel as usize]);
                 }
                 next += 1;
                 let p = sp.pixel as usize;
-                let acc = &mut xyz_sum[3 * p..3 * p + 3];
+                let acc = &mut batch[p];
+                if acc[..3] == [0.0; 3] {
+                    self.batch_touched.push(sp.pixel);
+                }
                 acc[0] += sp.xyz[0] as f64;
                 acc[1] += sp.xyz[1] as f64;
                 acc[2] += sp.xyz[2] as f64;
@@ -303,13 +349,77 @@ impl Film {
             }
             for &p in &self.touched {
                 let y = std::mem::take(&mut scratch_y[p as usize]);
-                self.y_sq_over_n[p as usize] += y * y / n;
+                batch[p as usize][3] += y * y / n;
             }
             self.touched.clear();
-            self.image_y_sq_over_n += image_y * image_y / n;
+            batch_image_y_sq += image_y * image_y / n;
             self.film_batches += 1;
         }
+        // One exact addition per touched pixel and batch (a pixel touched twice, or with zero
+        // XYZ, was listed twice: its second entry finds zeros, which add nothing).
+        for (i, &p) in self.batch_touched.iter().enumerate() {
+            if let Some(&ahead) = self.batch_touched.get(i + MERGE_PREFETCH_DISTANCE) {
+                prefetch(&self.pixels[ahead as usize]);
+            }
+            let v = std::mem::take(&mut batch[p as usize]);
+            if v != [0.0; 4] {
+                self.pixels[p as usize].add(v);
+            }
+        }
+        self.batch_touched.clear();
+        self.image_y_sq_over_n.add(batch_image_y_sq);
         self.photons += photons;
+    }
+
+    /// Adds another film's batches (a partial run's, another rank's): the same camera.
+    pub fn merge_run(&mut self, o: &Film) -> Result<(), String> {
+        if (o.width, o.height) != (self.width, self.height) {
+            return Err(format!("films of {}×{} and {}×{} pixels", self.width, self.height, o.width, o.height));
+        }
+        for (a, b) in self.pixels.iter_mut().zip(&o.pixels) {
+            a.add_sums(b);
+        }
+        self.image_y_sq_over_n.add_sum(&o.image_y_sq_over_n);
+        self.photons += o.photons;
+        self.film_batches += o.film_batches;
+        if let Some(oc) = &o.camera {
+            let cam = self.camera.get_or_insert_with(|| CameraPart::new(oc.count.len()));
+            for (a, b) in cam.sums.iter_mut().zip(&oc.sums) {
+                a.add_sums(b);
+            }
+            for (a, b) in cam.count.iter_mut().zip(&oc.count) {
+                *a = a.checked_add(*b).ok_or("a pixel has more than 2³² camera samples")?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The exact state, for a state file or another rank.
+    pub fn state(&self) -> FilmState {
+        FilmState {
+            width: self.width,
+            height: self.height,
+            pixels: self.pixels.clone(),
+            image_y_sq_over_n: self.image_y_sq_over_n,
+            photons: self.photons,
+            film_batches: self.film_batches,
+            camera: self.camera.as_ref().map(|c| (c.sums.clone(), c.count.clone())),
+        }
+    }
+
+    /// The film a state describes; None if its arrays do not fit its size.
+    pub fn from_state(s: FilmState) -> Option<Film> {
+        let pixels = s.width.checked_mul(s.height)?;
+        if s.pixels.len() != pixels || s.camera.as_ref().is_some_and(|(a, c)| a.len() != pixels || c.len() != pixels) {
+            return None;
+        }
+        let mut film = Film::new(s.width, s.height);
+        film.pixels = s.pixels;
+        film.image_y_sq_over_n = s.image_y_sq_over_n;
+        film.photons = s.photons;
+        film.film_batches = s.film_batches;
+        film.camera = s.camera.map(|(sums, count)| CameraPart { sums, count });
+        Some(film)
     }
 
     /// Between-batch variance of a mean: with per-batch sums S_b over n_b photons (N in all, K
@@ -333,8 +443,8 @@ impl Film {
     pub fn mean_y(&self, emitted_w: f64) -> (f64, f64) {
         let pixels = (self.width * self.height) as f64;
         let n = self.photons.max(1) as f64;
-        let total: f64 = self.xyz_sum.column(1).sum();
-        let var = self.variance_of_mean(total, self.image_y_sq_over_n);
+        let total: f64 = self.pixels.iter().map(|p| p.0[1].value()).sum();
+        let var = self.variance_of_mean(total, self.image_y_sq_over_n.value());
         let (mut mean, mut var) = (total / n * emitted_w / pixels, var * (emitted_w / pixels).powi(2));
         if let Some(cam) = &self.camera {
             // Mean of independent pixel means: variance Σ var_p / P².
@@ -356,9 +466,9 @@ impl Film {
         let mut rgb = Array3::zeros((self.height, self.width, 3));
         let mut y_var = vec![0.0f32; pixels];
         for p in 0..pixels {
-            let s = self.xyz_sum.row(p);
-            let mut sum = [s[0] * w, s[1] * w, s[2] * w];
-            let mut var = self.variance_of_mean(s[1], self.y_sq_over_n[p]) * emitted_w * emitted_w;
+            let [x, y, z, y_sq_over_n] = self.pixels[p].values();
+            let mut sum = [x * w, y * w, z * w];
+            let mut var = self.variance_of_mean(y, y_sq_over_n) * emitted_w * emitted_w;
             if let Some(cam) = &self.camera {
                 let (m, v) = cam.pixel(p);
                 sum = [sum[0] + m[0], sum[1] + m[1], sum[2] + m[2]];

@@ -4,6 +4,11 @@
 //! summed over the history, times Φ_total). The tally is x̄ = (1/N)Σx_i with standard error
 //! s = sqrt((⟨x²⟩ − x̄²)/(N − 1)). Histories are independent, so s falls as 1/√N.
 
+use super::exact::{self, ExactSum};
+
+/// Channels in a `Tallies` (see `Tallies::channels`).
+pub const CHANNELS: usize = 13;
+
 /// Σx and Σx² over histories, in units of the photon's emitted weight.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Moments {
@@ -184,6 +189,67 @@ pub struct Tallies {
     pub scatterings_sq: u64,
     pub counters: Counters,
     pub batches: u64,
+    /// A run's exact totals, which every f64 above (but the counters' seconds) is rounded from;
+    /// None in a batch's own tallies, whose sums are plain f64 in photon order.
+    pub sums: Option<Box<TallySums>>,
+}
+
+/// The exact totals behind a run's `Tallies` (see `exact`): what partial runs and MPI ranks
+/// exchange, so that any grouping of the batches gives the same bits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TallySums {
+    /// One per channel, in `Tallies::channels` order.
+    pub channels: Vec<ChannelSums>,
+    pub escaped: ExactSum,
+    pub truncated: ExactSum,
+}
+
+/// Exact Σx, Σx² and Σ_b S_b²/n_b of one channel, per row.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelSums {
+    pub sum: Vec<ExactSum>,
+    pub sum_sq: Vec<ExactSum>,
+    pub batch_sq: Vec<ExactSum>,
+}
+
+impl ChannelSums {
+    fn new(rows: usize) -> Self {
+        ChannelSums {
+            sum: vec![ExactSum::default(); rows],
+            sum_sq: vec![ExactSum::default(); rows],
+            batch_sq: vec![ExactSum::default(); rows],
+        }
+    }
+
+    /// Adds a batch's rows (`batch_photons` photons) and rounds the rows it touched into `view`.
+    fn add_batch(&mut self, view: &mut Channel, b: &Channel, batch_photons: u64) {
+        let n = batch_photons as f64;
+        for (i, m) in b.moments.iter().enumerate() {
+            if m.sum == 0.0 && m.sum_sq == 0.0 {
+                continue;
+            }
+            self.sum[i].add(m.sum);
+            self.sum_sq[i].add(m.sum_sq);
+            if batch_photons > 0 {
+                self.batch_sq[i].add(m.sum * m.sum / n);
+            }
+            view.moments[i] = Moments { sum: self.sum[i].value(), sum_sq: self.sum_sq[i].value() };
+            view.batch_sq[i] = self.batch_sq[i].value();
+        }
+    }
+
+    fn add_sums(&mut self, o: &ChannelSums) {
+        exact::add_all(&mut self.sum, &o.sum);
+        exact::add_all(&mut self.sum_sq, &o.sum_sq);
+        exact::add_all(&mut self.batch_sq, &o.batch_sq);
+    }
+
+    fn round_into(&self, view: &mut Channel) {
+        for i in 0..self.sum.len() {
+            view.moments[i] = Moments { sum: self.sum[i].value(), sum_sq: self.sum_sq[i].value() };
+            view.batch_sq[i] = self.batch_sq[i].value();
+        }
+    }
 }
 
 /// Which spread a standard error is computed from.
@@ -274,34 +340,121 @@ impl Tallies {
             scatterings_sq: 0,
             counters: Counters::default(),
             batches: 0,
+            sums: None,
         }
     }
 
-    /// Adds a batch. Called in batch-index order, so the f64 sums are the same for any thread count.
+    /// `for_scene`, keeping exact totals: a run's accumulator, whose results do not depend on the
+    /// order or grouping in which its batches are merged.
+    pub fn for_run(scene: &crate::scene::Scene) -> Self {
+        let mut t = Tallies::for_scene(scene);
+        t.sums = Some(Box::new(TallySums {
+            channels: t.channels().iter().map(|c| ChannelSums::new(c.len())).collect(),
+            escaped: ExactSum::default(),
+            truncated: ExactSum::default(),
+        }));
+        t
+    }
+
+    /// The channels, in a fixed order (the order of `TallySums::channels` and of state files).
+    pub fn channels(&self) -> [&Channel; CHANNELS] {
+        [
+            &self.incident,
+            &self.absorbed,
+            &self.incident_lm,
+            &self.absorbed_lm,
+            &self.texels,
+            &self.texels_lm,
+            &self.farfield,
+            &self.farfield_lm,
+            &self.spectra,
+            &self.spectra_absorbed,
+            &self.reemitted,
+            &self.volume_absorbed,
+            &self.volume_track,
+        ]
+    }
+
+    fn channels_mut(&mut self) -> [&mut Channel; CHANNELS] {
+        [
+            &mut self.incident,
+            &mut self.absorbed,
+            &mut self.incident_lm,
+            &mut self.absorbed_lm,
+            &mut self.texels,
+            &mut self.texels_lm,
+            &mut self.farfield,
+            &mut self.farfield_lm,
+            &mut self.spectra,
+            &mut self.spectra_absorbed,
+            &mut self.reemitted,
+            &mut self.volume_absorbed,
+            &mut self.volume_track,
+        ]
+    }
+
+    /// Adds a batch. A run's tallies (`for_run`) add it exactly, so the result is the same for any
+    /// order; a batch's own f64 tallies are merged in batch-index order, so their sums are the
+    /// same for any thread count.
     pub fn merge(&mut self, b: &Tallies) {
-        for (a, x) in [
-            (&mut self.incident, &b.incident),
-            (&mut self.absorbed, &b.absorbed),
-            (&mut self.incident_lm, &b.incident_lm),
-            (&mut self.absorbed_lm, &b.absorbed_lm),
-            (&mut self.texels, &b.texels),
-            (&mut self.texels_lm, &b.texels_lm),
-            (&mut self.farfield, &b.farfield),
-            (&mut self.farfield_lm, &b.farfield_lm),
-            (&mut self.spectra, &b.spectra),
-            (&mut self.spectra_absorbed, &b.spectra_absorbed),
-            (&mut self.reemitted, &b.reemitted),
-            (&mut self.volume_absorbed, &b.volume_absorbed),
-            (&mut self.volume_track, &b.volume_track),
-        ] {
-            a.merge(x, b.photons);
+        if let Some(mut sums) = self.sums.take() {
+            for ((a, x), s) in self.channels_mut().into_iter().zip(b.channels()).zip(&mut sums.channels) {
+                s.add_batch(a, x, b.photons);
+            }
+            sums.escaped.add(b.escaped);
+            sums.truncated.add(b.truncated);
+            self.escaped = sums.escaped.value();
+            self.truncated = sums.truncated.value();
+            self.sums = Some(sums);
+        } else {
+            for (a, x) in self.channels_mut().into_iter().zip(b.channels()) {
+                a.merge(x, b.photons);
+            }
+            self.escaped += b.escaped;
+            self.truncated += b.truncated;
         }
         if b.photons > 0 {
             self.batches += 1;
         }
+        self.add_counts(b);
+    }
+
+    /// Adds another run's tallies (a partial run, another rank's share): both must keep exact
+    /// totals (`for_run`) over the same scene; every view is rounded again.
+    pub fn merge_run(&mut self, b: &Tallies) -> Result<(), String> {
+        let (Some(sums), Some(other)) = (self.sums.as_deref_mut(), b.sums.as_deref()) else {
+            return Err("only a run's exact tallies can be merged".into());
+        };
+        if sums.channels.len() != other.channels.len()
+            || sums.channels.iter().zip(&other.channels).any(|(a, o)| a.sum.len() != o.sum.len())
+        {
+            return Err("the tallies are sized for different scenes".into());
+        }
+        for (a, o) in sums.channels.iter_mut().zip(&other.channels) {
+            a.add_sums(o);
+        }
+        sums.escaped.add_sum(&other.escaped);
+        sums.truncated.add_sum(&other.truncated);
+        self.batches += b.batches;
+        self.add_counts(b);
+        self.round_views();
+        Ok(())
+    }
+
+    /// Rounds every f64 view from the exact totals (after `merge_run`, or a state file's read).
+    pub fn round_views(&mut self) {
+        if let Some(sums) = self.sums.take() {
+            for (view, s) in self.channels_mut().into_iter().zip(&sums.channels) {
+                s.round_into(view);
+            }
+            self.escaped = sums.escaped.value();
+            self.truncated = sums.truncated.value();
+            self.sums = Some(sums);
+        }
+    }
+
+    fn add_counts(&mut self, b: &Tallies) {
         self.photons += b.photons;
-        self.escaped += b.escaped;
-        self.truncated += b.truncated;
         self.scatterings += b.scatterings;
         self.scatterings_sq += b.scatterings_sq;
         self.counters.merge(&b.counters);

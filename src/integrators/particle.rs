@@ -19,7 +19,7 @@ use crate::scene::{Material, Scene};
 use crate::spectrum::photometry;
 
 /// How absorption is estimated.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Estimator {
     // The doc comments are the command line's help: they speak to users.
@@ -39,7 +39,7 @@ pub enum Estimator {
 pub const ROULETTE_WEIGHT: f64 = 0.1;
 
 /// Options of the transport itself (the defaults were chosen by measurement; see the README).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct TransportOptions {
     pub estimator: Estimator,
     /// Latin-hypercube stratification of each batch's emission samples.

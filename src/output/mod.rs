@@ -5,6 +5,7 @@ pub mod converge;
 pub mod farfield;
 pub mod info;
 pub mod maps;
+pub mod state;
 pub mod volume;
 
 use std::io::Write;
@@ -112,6 +113,11 @@ pub struct RunInfo {
     pub stop_reason: StopReason,
     pub transport: String,
     pub batch_photons: u64,
+    /// The batches this run holds, first to last + 1: [0, n] but for a partial run
+    /// (`--batches`), or the merge of parts that start past 0.
+    pub batches: [u64; 2],
+    /// MPI ranks that traced the run (1 without MPI).
+    pub ranks: u32,
     pub max_bounces: u32,
     pub mean_scatterings: f64,
     pub mean_scatterings_stderr: f64,
@@ -219,6 +225,8 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         stop_reason: r.stop_reason,
         transport: scene.effects.transport().to_string(),
         batch_photons: BATCH_PHOTONS,
+        batches: [r.batches.0, r.batches.1],
+        ranks: r.ranks,
         max_bounces: scene.simulation.max_bounces,
         fom,
         image_mean_y: None,
@@ -443,9 +451,13 @@ pub fn write_spectra(dir: &Path, scene: &Scene, r: &RunResult) -> Result<Vec<Pat
 
 /// The files `photon run` writes for `scene`, relative to the output folder: known before any
 /// photon is traced, so every name can be tried first (a name too long for the file system, a
-/// folder that cannot be written) instead of failing after the work.
-pub fn run_file_names(scene: &Scene, image: bool) -> Vec<String> {
+/// folder that cannot be written) instead of failing after the work. A partial run (`partial`)
+/// adds its state file.
+pub fn run_file_names(scene: &Scene, image: bool, partial: bool) -> Vec<String> {
     let mut names: Vec<String> = ["flux.json", "flux.csv", "run.json"].map(String::from).into();
+    if partial {
+        names.push(state::STATE_FILE.into());
+    }
     if image {
         names.extend(["image.exr", "image.png"].map(String::from));
     }
@@ -541,7 +553,10 @@ impl OutputDir {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
             Err(e) => return Err(usage(format!("cannot be read: {e}"))),
         };
-        let tag = format!(".photon-staging-{}", std::process::id());
+        // The counter keeps two saves of one process (threads of a Python program) apart.
+        static SAVES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+        let n = SAVES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let tag = format!(".photon-staging-{}-{n}", std::process::id());
         let mut created = Vec::new();
         let staging = if target_existed {
             target.join(tag)
@@ -789,6 +804,9 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
     }
     for p in write_spectra(dir, scene, r)? {
         wrote(p);
+    }
+    if r.partial {
+        wrote(write_atomic(dir, state::STATE_FILE, &state::encode(scene, r)?)?);
     }
     info.files = files.iter().cloned().chain(["run.json".to_string()]).collect();
     write_json(dir, "run.json", &info)?;

@@ -26,6 +26,10 @@ pub const MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES: u64 = 30;
 /// An open-ended `--rel-error` run whose chosen tallies are still all zero after this many
 /// batches (16.4 million photons) stops: no photon reaches them, and none ever may.
 pub const MAX_BATCHES_WITHOUT_SIGNAL: u64 = 1000;
+pub use crate::scene::MAX_PHOTONS;
+// No exact sum may take more than `exact::MAX_VALUES` values (one per batch), even when two
+// full runs are merged.
+const _: () = assert!(2 * MAX_PHOTONS / BATCH_PHOTONS <= crate::detectors::exact::MAX_VALUES);
 /// Most worker threads accepted.
 pub const MAX_THREADS: usize = 1024;
 
@@ -45,9 +49,12 @@ pub struct RunOptions {
     /// Overrides the scene's `[simulation] integrator`.
     pub integrator: Option<crate::integrators::camera::Integrator>,
     pub transport: TransportOptions,
+    /// Trace only batches A..B (a partial run, to be merged with others); `photons` and the
+    /// stopping targets then do not apply.
+    pub batches: Option<(u64, u64)>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum StopReason {
     Photons,
@@ -89,6 +96,12 @@ pub struct RunResult {
     pub hero: bool,
     /// Which integrator made the image (flux always comes from the particle tracer).
     pub integrator: Integrator,
+    /// The batches traced: 0..n for a whole run, A..B for a partial one (`--batches`).
+    pub batches: (u64, u64),
+    /// A partial run (`--batches`), whose exact state is written for `photon merge`.
+    pub partial: bool,
+    /// MPI ranks that traced it (1 without MPI).
+    pub ranks: u32,
 }
 
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
@@ -96,6 +109,9 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     if let Some(p) = opts.photons {
         if p == 0 {
             return Err(Error::Usage("--photons must be at least 1".into()));
+        }
+        if p > MAX_PHOTONS {
+            return Err(Error::Usage(format!("--photons must be at most {MAX_PHOTONS} (2^48)")));
         }
         scene.simulation.photons = p;
     }
@@ -119,6 +135,25 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
     if let Some(t) = opts.time_s {
         if !(t > 0.0 && t.is_finite()) {
             return Err(Error::Usage(format!("--time must be a positive number of seconds, found {t}")));
+        }
+    }
+    if let Some((a, b)) = opts.batches {
+        if a >= b {
+            return Err(Error::Usage(format!("--batches {a}..{b} holds no batch: the end must exceed the start")));
+        }
+        if b > MAX_PHOTONS / BATCH_PHOTONS {
+            return Err(Error::Usage(format!("--batches must end at most at batch {}", MAX_PHOTONS / BATCH_PHOTONS)));
+        }
+        for (set, flag) in [
+            (opts.photons.is_some(), "--photons"),
+            (opts.rel_error.is_some(), "--rel-error"),
+            (opts.time_s.is_some(), "--time"),
+        ] {
+            if set {
+                return Err(Error::Usage(format!(
+                    "--batches fixes the photons ({BATCH_PHOTONS} per batch): it cannot be combined with {flag}"
+                )));
+            }
         }
     }
     if opts.threads.is_some_and(|t| t == 0 || t > MAX_THREADS) {
@@ -233,16 +268,26 @@ pub fn simulate_observed(
     // A command-line accuracy or time target is obeyed: only a command-line photon count caps it
     // (the scene file's `photons` is the default for runs without one).
     let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let cap = match opts.photons {
-        Some(p) => p,
-        None if open_ended => u64::MAX,
-        None => scene.simulation.photons,
+    let cap = match (opts.batches, opts.photons) {
+        (Some((_, end)), _) => end * BATCH_PHOTONS,
+        (None, Some(p)) => p,
+        (None, None) if open_ended => MAX_PHOTONS,
+        (None, None) => scene.simulation.photons,
     };
-    let total_batches = cap.div_ceil(BATCH_PHOTONS);
+    let (first_batch, end_batch) = opts.batches.unwrap_or((0, cap.div_ceil(BATCH_PHOTONS)));
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
 
-    let progress = opts.progress.then(|| RunProgress::new(opts, (cap != u64::MAX).then_some(cap), start)).flatten();
-    let mut tallies = Tallies::for_scene(scene);
+    let progress = opts
+        .progress
+        .then(|| {
+            RunProgress::new(
+                opts,
+                (cap != MAX_PHOTONS || opts.photons.is_some()).then_some(cap - first_batch * BATCH_PHOTONS),
+                start,
+            )
+        })
+        .flatten();
+    let mut tallies = Tallies::for_run(scene);
     let mut stop = StopReason::Photons;
     // Workers take batch indices in order and send results back; this thread merges them in
     // index order as they arrive, so tracing never waits for merging and the merge order (hence
@@ -251,14 +296,14 @@ pub fn simulate_observed(
     // in hand short (within CANCEL_CHECK_PHOTONS photons), and only the unbroken run of batches
     // merged before it counts.
     let window = 2 * threads as u64;
-    let workers = (threads as u64).min(total_batches.max(1)) as usize;
+    let workers = (threads as u64).min(end_batch - first_batch).max(1) as usize;
     let min_batches = match opts.transport.error_model() {
         crate::detectors::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
         crate::detectors::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
     };
     let mut failure: Option<String> = None;
-    let next = AtomicU64::new(0);
-    let merged = AtomicU64::new(0);
+    let next = AtomicU64::new(first_batch);
+    let merged = AtomicU64::new(first_batch);
     let (tx, rx) = std::sync::mpsc::channel();
     pool.in_place_scope(|scope| {
         for _ in 0..workers {
@@ -266,7 +311,7 @@ pub fn simulate_observed(
             let (next, merged, quit, kernel) = (&next, &merged, &quit, &kernel);
             scope.spawn(move |_| loop {
                 let b = next.fetch_add(1, Ordering::Relaxed);
-                if b >= total_batches || quit.load(Ordering::Relaxed) {
+                if b >= end_batch || quit.load(Ordering::Relaxed) {
                     break;
                 }
                 while b >= merged.load(Ordering::Acquire) + window && !quit.load(Ordering::Relaxed) {
@@ -295,12 +340,12 @@ pub fn simulate_observed(
         }
         drop(tx);
         let mut pending = std::collections::BTreeMap::new();
-        let mut want = 0u64;
+        let mut want = first_batch;
         // A time budget or Ctrl-C ends the run when it comes, not when the next batch does: the
         // merge waits at most POLL for a batch, and once one batch is in, a stop cancels the
         // batches in hand (they end within CANCEL_CHECK_PHOTONS photons and are dropped).
         let stop_now = |want: u64| -> Option<StopReason> {
-            if want == 0 {
+            if want == first_batch {
                 None
             } else if interrupt.load(Ordering::Relaxed) {
                 Some(StopReason::Interrupted)
@@ -310,7 +355,7 @@ pub fn simulate_observed(
                 None
             }
         };
-        'merge: while want < total_batches {
+        'merge: while want < end_batch {
             let (b, result) = match rx.recv_timeout(POLL) {
                 Ok(received) => received,
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
@@ -354,7 +399,7 @@ pub fn simulate_observed(
                     p.update(&tallies, worst);
                 }
                 if let Some(target) = opts.rel_error {
-                    if worst.is_none() && cap == u64::MAX && want >= MAX_BATCHES_WITHOUT_SIGNAL {
+                    if worst.is_none() && opts.photons.is_none() && want >= MAX_BATCHES_WITHOUT_SIGNAL {
                         eprintln!(
                             "warning: after {} photons no photon has reached the tallies --rel-error targets; stopping",
                             tallies.photons
@@ -384,7 +429,6 @@ pub fn simulate_observed(
         p.bar.finish_and_clear();
     }
     Ok(RunResult {
-        tallies,
         emitted_w: emitter.total_power_w,
         seed,
         threads,
@@ -395,6 +439,11 @@ pub fn simulate_observed(
         pilot,
         hero,
         integrator,
+        // The merged batches are an unbroken run from the first.
+        batches: (first_batch, first_batch + tallies.batches),
+        partial: opts.batches.is_some(),
+        ranks: 1,
+        tallies,
     })
 }
 
@@ -411,7 +460,7 @@ const PILOT_PARTS: u64 = 8;
 
 /// What the pilot measured of one estimator: the largest relative variance per photon,
 /// N·(σ/x̄)², over the tallies the run targets, and the rays each photon cost.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PilotFigures {
     /// Photons the pilot traced with this estimator.
     pub photons: u64,
@@ -421,7 +470,7 @@ pub struct PilotFigures {
     pub cost: f64,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct EstimatorPilot {
     pub chosen: Estimator,
     /// None (left out of run.json) when the pilot saw no tally and no image scored.

@@ -59,7 +59,10 @@ pub fn load_str(path: &Path, text: &str) -> Result<Scene, Error> {
     let base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let loader = Loader { src: &src, base_dir };
     let table = Table { src: &src, path: "", table: root.get_ref(), start: root.span().start };
-    Ok(loader.scene(table, path)?)
+    let (scene, digest) = crate::error::digest_inputs(text, || loader.scene(table, path));
+    let mut scene = scene?;
+    scene.input_digest = digest;
+    Ok(scene)
 }
 
 struct Loader<'s> {
@@ -350,6 +353,7 @@ impl<'s> Loader<'s> {
             reference,
             origin_m,
             unit_m,
+            input_digest: 0,
         })
     }
 
@@ -1582,6 +1586,9 @@ impl<'s> Loader<'s> {
             if let Some(p) = t.with("photons", |n| n.u64())? {
                 if p == 0 {
                     return Err(t.err_at("photons", "photons must be at least 1"));
+                }
+                if p > super::MAX_PHOTONS {
+                    return Err(t.err_at("photons", format!("photons must be at most {} (2^48)", super::MAX_PHOTONS)));
                 }
                 sim.photons = p;
             }

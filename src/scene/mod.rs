@@ -33,6 +33,10 @@ pub struct Simulation {
 
 /// GGX α below which a surface is smooth (a delta lobe): the lobe is then narrower than a
 /// direction's f32 resolution, and microfacet sampling loses its precision.
+/// Most photons one run may trace (2^48): `run` keeps every total as an exact sum with room for
+/// 2^35 batches, and this leaves room to merge two full runs.
+pub const MAX_PHOTONS: u64 = 1 << 48;
+
 pub const SMOOTH_ROUGHNESS: f64 = 1e-4;
 
 /// GGX roughness: α along the surface tangent (`u`, see `Geometry::tangent`) and across it in
@@ -413,11 +417,13 @@ pub struct Scene {
     /// file's length unit (m): to show positions in the file's coordinates again.
     pub origin_m: glam::DVec3,
     pub unit_m: f64,
+    /// FNV-1a digest of the scene text and every file it read (`error::digest_inputs`).
+    pub input_digest: u64,
 }
 
 /// Which integrator makes the camera image (`[simulation] integrator`, `--integrator`): the
 /// scene's plain description of the choice; the integrators live in `camera_paths`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Integrator {
     /// Light tracing: every photon vertex splatted to the camera (the particle tracer's own film).

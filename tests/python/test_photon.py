@@ -9,10 +9,13 @@ import gc
 import sys
 import json
 import os
+import re
 import signal
 import subprocess
 import threading
 import time
+import types
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -132,6 +135,7 @@ resolution = [4, 3, 2]
     r.save(tmp_path)
     npy = np.load(tmp_path / "volume_slab.npy")
     assert np.array_equal(npy[0], v["absorbed_w_m3"]) and np.array_equal(npy[3], v["fluence_w_m2_stderr"])
+    assert v["min"] == [-5, -5, -1] and v["max"] == [5, 5, 0]  # as written, as `info` shows them
 
 
 def test_image_shape_and_normalisation_radiance_wall():
@@ -162,6 +166,7 @@ radiance = {c}
     assert abs(mean - c) < 4 * se, (mean, se)
     mean_y, se_y = r.run_info["image_mean_y"]
     assert np.isclose(mean_y, mean, rtol=1e-6) and se_y > 0
+    assert "image: mean Y" in r.summary() and "pixel noise" in r.summary()
     # The image is XYZ through the sRGB matrix (IEC 61966-2-1, D65), pixel by pixel.
     m = np.array([[3.2406, -1.5372, -0.4986], [-0.9689, 1.8758, 0.0415], [0.0557, -0.2040, 1.0570]])
     assert np.allclose(r.image, r.xyz @ m.T, rtol=2e-3, atol=1e-6 * c)
@@ -187,8 +192,259 @@ def test_bad_scenes_raise_scene_error_with_the_line():
         scene.run(integrator="raytrace")
     with pytest.raises(ValueError, match="tally"):
         scene.run(rel_error=0.01, tally=["nowhere"])
-    with pytest.raises(OverflowError):
-        scene.run(photons=-1)
+
+
+@pytest.mark.parametrize(
+    "kw, error, message",
+    [
+        ({"photons": -1}, ValueError, "photons must be a positive integer, got -1"),
+        ({"photons": 0}, ValueError, "photons must be a positive integer, got 0"),
+        ({"photons": 2**70}, ValueError, "photons must be a positive integer"),
+        ({"photons": 1.5}, ValueError, "photons must be a positive integer, got 1.5"),
+        ({"photons": float("nan")}, ValueError, "photons must be"),
+        ({"photons": "1000"}, TypeError, "photons must be"),
+        ({"photons": True}, TypeError, "photons must be"),
+        ({"seed": -1}, ValueError, "seed must be an integer between 0 and"),
+        ({"seed": 2**64}, ValueError, "seed must be"),
+        ({"threads": 0}, ValueError, "threads must be an integer between 1 and 1024, got 0"),
+        ({"threads": 5000}, ValueError, "threads must be"),
+        ({"max_bounces": -1}, ValueError, "max_bounces must be"),
+        ({"max_bounces": 2**32}, ValueError, "max_bounces must be"),
+        ({"rel_error": -0.1}, ValueError, "rel_error must be a positive number, got -0.1"),
+        ({"rel_error": float("inf")}, ValueError, "rel_error must be"),
+        ({"time": 0}, ValueError, "time must be a positive number"),
+        ({"tally": ["floor"]}, ValueError, "tally only makes sense with rel_error"),
+        ({"tally": ["nowhere"], "rel_error": 0.1}, ValueError, "tally: no surface or medium"),
+    ],
+)
+def test_bad_run_arguments_name_the_python_argument(kw, error, message):
+    scene = photon.load(SCENES / "cornell_box.toml")
+    with pytest.raises(error, match=re.escape(message)) as e:
+        scene.run(**kw)
+    assert "--" not in str(e.value), "the message names a command-line flag"
+
+
+def test_integral_floats_and_numpy_ints_are_counts():
+    scene = photon.load(SCENES / "furnace.toml")
+    a = scene.run(photons=2e4, seed=np.uint64(3), threads=np.int32(1), max_bounces=50.0)
+    b = scene.run(photons=20_000, seed=3, threads=1, max_bounces=50)
+    assert a.run_info["photons"] == 20_000 and a.run_info["seed"] == 3
+    assert a.flux_json == b.flux_json
+    with pytest.raises(ValueError, match="threads must be") as e:
+        photon.validate(threads=-2)
+    assert "--" not in str(e.value)
+
+
+def test_save_into_a_file_names_the_argument(tmp_path):
+    r = photon.load(SCENES / "furnace.toml").run(photons=2_000, seed=1)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match="save: dir .*is a file, not a folder") as e:
+        r.save(tmp_path / "file")
+    assert "--out" not in str(e.value)
+
+
+def test_concurrent_saves_from_two_threads_do_not_collide(tmp_path):
+    results = [
+        photon.load(SCENES / "cornell_box.toml").run(photons=20_000, seed=1),
+        photon.load(SCENES / "luminaire.toml").run(photons=20_000, seed=5),
+    ]
+    singles = []
+    for k, r in enumerate(results):
+        singles.append((tmp_path / f"single{k}", r.save(tmp_path / f"single{k}")))
+    parent = tmp_path / "together"
+    parent.mkdir()
+    for round_ in range(3):
+        # New folders side by side: their staging folders sit together in `parent`.
+        dirs = [parent / f"r{round_}_{k}" for k in range(2)]
+        barrier = threading.Barrier(2)
+        got, errors = [None, None], []
+
+        def save(k):
+            try:
+                barrier.wait()
+                got[k] = results[k].save(dirs[k])
+            except BaseException as e:  # noqa: B036 - reported below
+                errors.append(e)
+
+        workers = [threading.Thread(target=save, args=(k,)) for k in range(2)]
+        for w in workers:
+            w.start()
+        for w in workers:
+            w.join()
+        assert not errors, errors
+        for k, (single_dir, single_files) in enumerate(singles):
+            assert got[k] == single_files
+            for f in single_files:
+                assert (dirs[k] / f).read_bytes() == (single_dir / f).read_bytes(), f"{f} differs"
+    # Every staging folder was moved into place or removed.
+    assert sorted(p.name for p in parent.iterdir()) == sorted(f"r{i}_{k}" for i in range(3) for k in range(2))
+
+
+def test_self_referential_and_deep_values_raise_value_error():
+    d = {"simulation": {"photons": 1000}}
+    d["simulation"]["again"] = d
+    with pytest.raises(ValueError, match="nested more than 64 levels") as e:
+        photon.from_dict(d)
+    assert str(e.value).startswith("simulation.again.simulation.again.")
+    deep = []
+    for _ in range(100_000):
+        deep = [deep]
+    with pytest.raises(ValueError, match=r"^simulation\.x\[0\]\[0\].*nested more than 64 levels"):
+        photon.from_dict({"simulation": {"x": deep}})
+    scene = photon.load(SCENES / "furnace.toml")
+    with pytest.raises(ValueError, match=r"^simulation\.x\[0\]"):
+        scene.with_overrides({"simulation.x": deep})
+    # 64 levels are still fine as values go (the loader then judges the key).
+    ok = {"a": 1}
+    for _ in range(60):
+        ok = {"t": ok}
+    with pytest.raises(photon.SceneError):
+        photon.from_dict({**scene.to_dict(), "extra": ok})
+
+
+def test_any_mapping_is_accepted_nested_too():
+    from types import MappingProxyType
+
+    def proxied(x):
+        if isinstance(x, dict):
+            return MappingProxyType({k: proxied(v) for k, v in x.items()})
+        if isinstance(x, list):
+            return [proxied(v) for v in x]
+        return x
+
+    scene = photon.load(SCENES / "cornell_box.toml")
+    plain = photon.from_dict(scene.to_dict(), base_dir=SCENES, name="cornell_box")
+    mapped = photon.from_dict(proxied(scene.to_dict()), base_dir=SCENES, name="cornell_box")
+    assert mapped.toml == plain.toml
+    over = scene.with_overrides(MappingProxyType({"lights.light": proxied(scene.to_dict()["lights"][0])}))
+    assert over.to_dict()["lights"] == scene.to_dict()["lights"]
+    with pytest.raises(TypeError):
+        scene.with_overrides([("simulation.photons", 5)])
+
+
+def test_from_dict_drops_none_values_and_loads_checks_the_name():
+    scene = photon.load(SCENES / "cornell_box.toml")
+    d = scene.to_dict()
+    d["camera"] = None
+    assert "camera" not in photon.from_dict(d, base_dir=SCENES).to_dict()
+    text = (SCENES / "furnace.toml").read_text()
+    for bad in ["../escape", "a/b", "a\\b", "..", ""]:
+        with pytest.raises(ValueError, match="name must be a file name"):
+            photon.loads(text, base_dir=SCENES, name=bad)
+        with pytest.raises(ValueError, match="name must be a file name"):
+            photon.from_dict(d, base_dir=SCENES, name=bad)
+    assert photon.loads(text, base_dir=SCENES, name="furnace_copy").name == "furnace_copy"
+
+
+def test_nested_key_errors_read_plainly():
+    scene = photon.load(SCENES / "cornell_box.toml")
+    with pytest.raises(KeyError) as e:
+        scene.with_overrides({"surfaces.floor.material.x": 1})
+    assert e.value.args[0] == "surfaces.floor.material.x: `surfaces.floor.material` is a value, not a table"
+
+
+def test_relative_scene_path_survives_a_change_of_directory(tmp_path, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    scene = photon.load("scenes/luminaire.toml")  # names its IES file by a relative path
+    monkeypatch.chdir(tmp_path)
+    moved = scene.with_overrides({"simulation.seed": 4})
+    r = moved.run(photons=5_000, seed=2, image=False)
+    assert moved.path == scene.path == "scenes/luminaire.toml"
+    assert r.run_info["scene"] == "scenes/luminaire.toml" and r.ledger["emitted_w"] > 0
+    same = scene.run(photons=5_000, seed=2, image=False)
+    assert r.flux_json == same.flux_json
+
+
+def test_warnings_point_at_the_caller_and_can_be_errors():
+    scene = photon.load(SCENES / "cornell_box.toml")
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        scene.run(photons=1_000, seed=1)
+    (w,) = [w for w in seen if "film batches" in str(w.message)]
+    assert w.category is UserWarning and w.filename == __file__
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning, match="fewer than 2 film batches"):
+            scene.run(photons=1_000, seed=1)
+
+
+class FakeTqdm:
+    """tqdm.auto.tqdm's calls as the module makes them, recorded."""
+
+    made = []
+    fail_update = None
+
+    def __init__(self, total=None, **kw):
+        self.total, self.n, self.closed = total, 0, 0
+        FakeTqdm.made.append(self)
+
+    def update(self, k):
+        if FakeTqdm.fail_update is not None:
+            raise FakeTqdm.fail_update
+        self.n += k
+
+    def close(self):
+        self.closed += 1
+
+
+@pytest.fixture
+def fake_tqdm(monkeypatch):
+    auto = types.ModuleType("tqdm.auto")
+    auto.tqdm = FakeTqdm
+    pkg = types.ModuleType("tqdm")
+    pkg.auto = auto
+    monkeypatch.setitem(sys.modules, "tqdm", pkg)
+    monkeypatch.setitem(sys.modules, "tqdm.auto", auto)
+    FakeTqdm.made, FakeTqdm.fail_update = [], None
+    yield FakeTqdm
+    FakeTqdm.fail_update = None
+
+
+def test_progress_bar_reaches_the_final_count_and_closes(fake_tqdm):
+    r = photon.load(SCENES / "furnace.toml").run(photons=50_000, seed=2, progress=True)
+    (bar,) = fake_tqdm.made
+    assert bar.total == 50_000 and bar.n == r.run_info["photons"] == 50_000 and bar.closed == 1
+
+
+def test_keyboard_interrupt_inside_the_progress_bar_stops_the_run(fake_tqdm):
+    fake_tqdm.fail_update = KeyboardInterrupt()
+    start = time.monotonic()
+    with pytest.raises(photon.RunInterrupted) as e:
+        photon.load(SCENES / "cornell_box.toml").run(photons=10**10, seed=1, progress=True)
+    assert time.monotonic() - start < 10
+    assert e.value.result.interrupted and 0 < e.value.result.run_info["photons"] < 10**10
+    (bar,) = fake_tqdm.made
+    assert bar.closed == 1
+
+
+def test_keyboard_interrupt_is_kept_when_no_result_can_be_made(fake_tqdm):
+    # The bar's last update is interrupted, then the result's warning is an error: the
+    # interrupt is raised, the warning its cause.
+    fake_tqdm.fail_update = KeyboardInterrupt()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(photon.RunInterrupted) as e:
+            photon.load(SCENES / "cornell_box.toml").run(photons=1_000, seed=1, progress=True)
+    assert e.value.result is None and isinstance(e.value.__cause__, UserWarning)
+
+
+def test_keyboard_interrupt_while_making_the_bar(monkeypatch, fake_tqdm):
+    def interrupted(**kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sys.modules["tqdm.auto"], "tqdm", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        photon.load(SCENES / "furnace.toml").run(photons=1_000, seed=1, progress=True)
+
+
+def test_fallback_progress_line_ends_once(monkeypatch, capfd):
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)  # as if tqdm were not installed
+    photon.load(SCENES / "furnace.toml").run(photons=20_000, seed=2, progress=True)
+    err = capfd.readouterr().err
+    assert "100.0%" in err and err.endswith("\n") and err.count("\n") == 1
+    monkeypatch.setattr(sys, "stderr", None)  # pythonw: nowhere to draw, and no error
+    r = photon.load(SCENES / "furnace.toml").run(photons=20_000, seed=2, progress=True)
+    assert r.run_info["photons"] == 20_000
 
 
 def test_overrides_and_dict_round_trip_are_exact():

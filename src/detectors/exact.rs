@@ -1,0 +1,344 @@
+//! Order-free sums of f64 values: a run's totals come out as the same bits however its batches
+//! are grouped or ordered (threads, MPI ranks, merged partial runs), because each total is kept
+//! as an integer sum of fixed-point parts and rounded only when read.
+//!
+//! The binary line is cut into 28-bit slots: slot s holds the weights 2^(28s − 1074) up to
+//! 2^(28s − 1047), so slot 0 starts at the smallest subnormal and slot 74 holds f64::MAX's top bit.
+//! An f64's 53 significant bits span at most three slots. An `ExactSum` keeps three i64 words:
+//! the sums of every added value's parts in the highest slot any added value reached (T) and in
+//! the two below it. Parts below slot T − 2 are dropped, and words never carry into each other,
+//! so the words are Σ over all values of their parts in slots T − 2..=T whatever the order or
+//! grouping: the sum is a function of the set of values alone. What is dropped is below
+//! 2^−56 of the largest value, per value: no more than f64 addition in any order loses.
+//!
+//! Each part is below 2^28 in magnitude, so a word holds 2^35 additions without overflow; every
+//! accumulator in photon takes at most one value per batch (`MAX_VALUES`).
+
+const SLOT_BITS: i32 = 28;
+const SLOT_MASK: u128 = (1 << SLOT_BITS) - 1;
+/// Weight of slot 0's lowest bit: the smallest subnormal, 2^−1074.
+const LOWEST_EXPONENT: i32 = -1074;
+/// `top` of a sum that has seen no value.
+const EMPTY: i32 = -1;
+/// `top` of a sum that has seen a NaN or an infinity: it reads as NaN, so the output's finiteness
+/// checks report it instead of a wrong number.
+const POISONED: i32 = i32::MAX;
+/// Highest slot an f64 reaches: (1023 + 1074) / 28.
+pub const MAX_SLOT: i32 = 74;
+/// Values one sum can take without a word overflowing: 2^35 parts below 2^28 stay below 2^63.
+pub const MAX_VALUES: u64 = 1 << 35;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ExactSum {
+    /// Slot of `words[0]`; `words[k]` is slot `top − k`.
+    top: i32,
+    words: [i64; 3],
+}
+
+impl Default for ExactSum {
+    fn default() -> Self {
+        ExactSum { top: EMPTY, words: [0; 3] }
+    }
+}
+
+impl ExactSum {
+    #[inline]
+    pub fn add(&mut self, x: f64) {
+        let bits = x.to_bits();
+        let biased = ((bits >> 52) & 0x7ff) as i32;
+        if biased == 0x7ff {
+            self.top = POISONED;
+            return;
+        }
+        let fraction = bits & ((1 << 52) - 1);
+        // x = m · 2^(p − 1074) with p the position of m's lowest bit on the slot line.
+        let (m, p) = if biased == 0 { (fraction, 0) } else { (fraction | 1 << 52, biased - 1) };
+        if m == 0 || self.top == POISONED {
+            return;
+        }
+        let slot = p / SLOT_BITS;
+        let wide = (m as u128) << (p % SLOT_BITS);
+        let parts =
+            [(wide & SLOT_MASK) as i64, ((wide >> SLOT_BITS) & SLOT_MASK) as i64, (wide >> (2 * SLOT_BITS)) as i64];
+        let value_top = slot
+            + if parts[2] != 0 {
+                2
+            } else if parts[1] != 0 {
+                1
+            } else {
+                0
+            };
+        self.raise_top(value_top);
+        let negative = bits >> 63 != 0;
+        for (j, &part) in parts.iter().enumerate() {
+            let k = self.top - (slot + j as i32);
+            if (0..3).contains(&k) {
+                let w = &mut self.words[k as usize];
+                *w = if negative { *w - part } else { *w + part };
+            }
+        }
+    }
+
+    /// Adds another sum: the result is the sum of both sets of values.
+    pub fn add_sum(&mut self, other: &ExactSum) {
+        if other.top == EMPTY {
+            return;
+        }
+        if other.top == POISONED {
+            self.top = POISONED;
+        }
+        if self.top == POISONED {
+            return;
+        }
+        self.raise_top(other.top);
+        let shift = (self.top - other.top) as usize;
+        for k in 0..3usize.saturating_sub(shift) {
+            self.words[k + shift] += other.words[k];
+        }
+    }
+
+    /// Moves the window up to slot `t`, dropping the words that fall below it.
+    #[inline]
+    fn raise_top(&mut self, t: i32) {
+        if t <= self.top {
+            return;
+        }
+        let [w0, w1, _] = self.words;
+        self.words = match t - self.top {
+            1 => [0, w0, w1],
+            2 => [0, 0, w0],
+            _ => [0; 3],
+        };
+        self.top = t;
+    }
+
+    /// The sum, rounded once to the nearest f64 (ties to even).
+    pub fn value(&self) -> f64 {
+        match self.top {
+            EMPTY => 0.0,
+            POISONED => f64::NAN,
+            top => {
+                // |words| < 2^63, so the window's integer is below 2^120.
+                let n = ((self.words[0] as i128) << (2 * SLOT_BITS))
+                    + ((self.words[1] as i128) << SLOT_BITS)
+                    + self.words[2] as i128;
+                // `as f64` rounds to nearest-even; scaling by a power of two is then exact
+                // outside the subnormal range.
+                scale_by_power_of_two(n as f64, SLOT_BITS * (top - 2) + LOWEST_EXPONENT)
+            }
+        }
+    }
+
+    /// The state as 28 little-endian bytes: top (i32), then the three words (i64).
+    pub fn to_bytes(&self) -> [u8; 28] {
+        let mut b = [0u8; 28];
+        b[..4].copy_from_slice(&self.top.to_le_bytes());
+        for (k, w) in self.words.iter().enumerate() {
+            b[4 + 8 * k..12 + 8 * k].copy_from_slice(&w.to_le_bytes());
+        }
+        b
+    }
+
+    /// The inverse of `to_bytes`; None if `top` is no slot (a corrupt file).
+    pub fn from_bytes(b: &[u8; 28]) -> Option<ExactSum> {
+        let top = i32::from_le_bytes(b[..4].try_into().ok()?);
+        if !(top == EMPTY || top == POISONED || (0..=MAX_SLOT).contains(&top)) {
+            return None;
+        }
+        let mut words = [0i64; 3];
+        for (k, w) in words.iter_mut().enumerate() {
+            *w = i64::from_le_bytes(b[4 + 8 * k..12 + 8 * k].try_into().ok()?);
+        }
+        if top == EMPTY && words != [0; 3] {
+            return None;
+        }
+        Some(ExactSum { top, words })
+    }
+}
+
+/// x · 2^e, in steps that stay inside f64's exponent range.
+fn scale_by_power_of_two(mut x: f64, mut e: i32) -> f64 {
+    let pow2 = |k: i32| f64::from_bits(((k + 1023) as u64) << 52);
+    while e > 1023 {
+        x *= pow2(1023);
+        e -= 1023;
+    }
+    while e < -1022 {
+        x *= pow2(-1022);
+        e += 1022;
+        if x == 0.0 {
+            return x;
+        }
+    }
+    x * pow2(e)
+}
+
+/// Element-wise `ExactSum`s behind a vector of f64 totals.
+pub fn add_all(into: &mut [ExactSum], from: &[ExactSum]) {
+    for (a, b) in into.iter_mut().zip(from) {
+        a.add_sum(b);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Sampler;
+
+    fn below(rng: &mut Sampler, n: usize) -> usize {
+        (rng.uniform() * n as f64) as usize
+    }
+
+    /// The correctly rounded sum (Shewchuk's exact partials, as Python's math.fsum): the reference.
+    fn fsum(values: &[f64]) -> f64 {
+        let mut partials: Vec<f64> = Vec::new();
+        for &v in values {
+            let mut x = v;
+            let mut kept = 0;
+            for i in 0..partials.len() {
+                let mut y = partials[i];
+                if x.abs() < y.abs() {
+                    std::mem::swap(&mut x, &mut y);
+                }
+                let hi = x + y;
+                let lo = y - (hi - x);
+                if lo != 0.0 {
+                    partials[kept] = lo;
+                    kept += 1;
+                }
+                x = hi;
+            }
+            partials.truncate(kept);
+            partials.push(x);
+        }
+        // Sum from the top, then correct a half-way case as fsum does.
+        let mut n = partials.len();
+        if n == 0 {
+            return 0.0;
+        }
+        n -= 1;
+        let mut hi = partials[n];
+        let mut lo = 0.0;
+        while n > 0 {
+            let x = hi;
+            n -= 1;
+            let y = partials[n];
+            hi = x + y;
+            let yr = hi - x;
+            lo = y - yr;
+            if lo != 0.0 {
+                break;
+            }
+        }
+        if n > 0 && ((lo < 0.0 && partials[n - 1] < 0.0) || (lo > 0.0 && partials[n - 1] > 0.0)) {
+            let y = lo * 2.0;
+            let x = hi + y;
+            if y == x - hi {
+                hi = x;
+            }
+        }
+        hi
+    }
+
+    fn sum_of(values: &[f64]) -> ExactSum {
+        let mut s = ExactSum::default();
+        for &v in values {
+            s.add(v);
+        }
+        s
+    }
+
+    /// Values of mixed sign over `decades` decades around 1.
+    fn values(rng: &mut Sampler, n: usize, decades: f64) -> Vec<f64> {
+        (0..n)
+            .map(|_| {
+                let v = 10f64.powf(decades * (rng.uniform() - 0.5)) * (0.5 + 0.5 * rng.uniform());
+                if rng.uniform() < 0.3 {
+                    -v
+                } else {
+                    v
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn any_order_and_grouping_gives_the_same_bits() {
+        let mut rng = Sampler::for_batch(1, 0);
+        for decades in [0.5, 6.0, 30.0, 300.0] {
+            let mut v = values(&mut rng, 2000, decades);
+            let whole = sum_of(&v);
+            for _ in 0..20 {
+                // Shuffle, cut into random groups, sum each group, add the groups in random order.
+                for i in (1..v.len()).rev() {
+                    v.swap(i, below(&mut rng, i + 1));
+                }
+                let mut groups = Vec::new();
+                let mut start = 0;
+                while start < v.len() {
+                    let end = (start + 1 + below(&mut rng, 200)).min(v.len());
+                    groups.push(sum_of(&v[start..end]));
+                    start = end;
+                }
+                for i in (1..groups.len()).rev() {
+                    groups.swap(i, below(&mut rng, i + 1));
+                }
+                let mut total = ExactSum::default();
+                for g in &groups {
+                    total.add_sum(g);
+                }
+                assert_eq!(total, whole);
+                assert_eq!(total.value().to_bits(), whole.value().to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn within_the_window_the_sum_is_correctly_rounded() {
+        // Spreads under 10^13 (2^43) keep every bit of every value: the exact sum, rounded once.
+        let mut rng = Sampler::for_batch(2, 0);
+        for decades in [0.1, 3.0, 12.0] {
+            for scale in [1e-300, 1e-12, 1.0, 3e7, 1e290] {
+                let v: Vec<f64> = values(&mut rng, 500, decades).iter().map(|x| x * scale).collect();
+                assert_eq!(sum_of(&v).value(), fsum(&v), "decades {decades}, scale {scale}");
+            }
+        }
+        // Cancellation that plain f64 addition gets wrong: 1e16 + 1 − 1e16 + 1 = 2.
+        assert_eq!(sum_of(&[1e16, 1.0, -1e16, 1.0]).value(), 2.0);
+        assert_eq!(sum_of(&[0.1; 10]).value(), fsum(&[0.1; 10]));
+    }
+
+    #[test]
+    fn beyond_the_window_no_more_is_lost_than_by_f64_addition() {
+        // One huge value and many tiny ones: the tiny ones' lost bits stay below 2^−56 of the
+        // huge one each, where in-order f64 addition loses up to half an ulp (2^−53) each.
+        let mut rng = Sampler::for_batch(3, 0);
+        let mut v = vec![1e20];
+        v.extend((0..10_000).map(|_| rng.uniform()));
+        let exact = fsum(&v);
+        let err = (sum_of(&v).value() - exact).abs();
+        assert!(err <= v.len() as f64 * 1e20 * 2f64.powi(-56), "error {err}");
+    }
+
+    #[test]
+    fn edge_values() {
+        let tiny = f64::from_bits(1);
+        assert_eq!(sum_of(&[tiny, tiny, tiny]).value(), 3.0 * tiny);
+        // 1 lies 2^1023 below the window: dropped in every order, where f64 addition gives 1
+        // (MAX − MAX + 1) or 0 ((MAX + 1) − MAX) by order.
+        assert_eq!(sum_of(&[f64::MAX, -f64::MAX, 1.0]).value(), 0.0);
+        assert_eq!(sum_of(&[1.0, f64::MAX, -f64::MAX]).value(), 0.0);
+        assert_eq!(sum_of(&[f64::MAX / 2.0, f64::MAX / 4.0]).value(), f64::MAX * 0.75);
+        assert!(sum_of(&[f64::MAX, f64::MAX]).value().is_infinite());
+        assert_eq!(sum_of(&[]).value(), 0.0);
+        assert_eq!(sum_of(&[0.0, -0.0]).value(), 0.0);
+        assert!(sum_of(&[1.0, f64::NAN, 2.0]).value().is_nan());
+        assert!(sum_of(&[1.0, f64::INFINITY]).value().is_nan());
+        // Bytes round trip; a top that is no slot is refused.
+        let s = sum_of(&[3.5, -1e-9, 7e30]);
+        assert_eq!(ExactSum::from_bytes(&s.to_bytes()), Some(s));
+        let mut bad = s.to_bytes();
+        bad[..4].copy_from_slice(&100i32.to_le_bytes());
+        assert_eq!(ExactSum::from_bytes(&bad), None);
+    }
+}
