@@ -42,7 +42,8 @@ impl Default for ExactSum {
 }
 
 impl ExactSum {
-    #[inline]
+    /// Adds `x` (the film's merge adds millions a second: kept branch-light).
+    #[inline(always)]
     pub fn add(&mut self, x: f64) {
         let bits = x.to_bits();
         let biased = ((bits >> 52) & 0x7ff) as i32;
@@ -58,24 +59,34 @@ impl ExactSum {
         }
         let slot = p / SLOT_BITS;
         let wide = (m as u128) << (p % SLOT_BITS);
-        let parts =
-            [(wide & SLOT_MASK) as i64, ((wide >> SLOT_BITS) & SLOT_MASK) as i64, (wide >> (2 * SLOT_BITS)) as i64];
-        let value_top = slot
-            + if parts[2] != 0 {
-                2
-            } else if parts[1] != 0 {
-                1
-            } else {
-                0
-            };
+        // Two's-complement negation by mask: (v ^ s) − s is v for s = 0 and −v for s = −1.
+        let s = -((bits >> 63) as i64);
+        let signed = |v: u128| ((v as i64) ^ s) - s;
+        let lo = signed(wide & SLOT_MASK);
+        let mid = signed((wide >> SLOT_BITS) & SLOT_MASK);
+        let hi = signed(wide >> (2 * SLOT_BITS));
+        let value_top = slot + (hi != 0) as i32 + (hi != 0 || mid != 0) as i32;
         self.raise_top(value_top);
-        let negative = bits >> 63 != 0;
-        for (j, &part) in parts.iter().enumerate() {
-            let k = self.top - (slot + j as i32);
-            if (0..3).contains(&k) {
-                let w = &mut self.words[k as usize];
-                *w = if negative { *w - part } else { *w + part };
+        // Where the value's three slots (slot + 2, + 1, + 0) fall in the window: a part above
+        // it is zero, one below it is dropped.
+        let w = &mut self.words;
+        match self.top - (slot + 2) {
+            -2 => w[0] += lo,
+            -1 => {
+                w[0] += mid;
+                w[1] += lo;
             }
+            0 => {
+                w[0] += hi;
+                w[1] += mid;
+                w[2] += lo;
+            }
+            1 => {
+                w[1] += hi;
+                w[2] += mid;
+            }
+            2 => w[2] += hi,
+            _ => {}
         }
     }
 

@@ -129,6 +129,10 @@ impl Kernel<'_> {
             // The camera samples share the batch's indices, so a stop at a batch boundary stops both.
             film = Some(image.trace_batch(batch, count, &mut tallies.counters, self.cancel));
         }
+        // Reduced here, on the worker, not on the thread that merges the batches in order.
+        if let Some(f) = film.as_mut() {
+            f.digest(count);
+        }
         tallies.counters.trace_seconds = start.elapsed().as_secs_f64();
         (tallies, film)
     }

@@ -270,7 +270,8 @@ impl<'a> ImageKernel<'a> {
         let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
         let first = batch * crate::integrators::batch::BATCH_PHOTONS;
         let pixels = self.camera.pixels() as u64;
-        let mut film = FilmBatch { first_sample: first, ..FilmBatch::default() };
+        let mut film = FilmBatch::default();
+        film.first_sample = first;
         film.samples.reserve(count as usize);
         let mut bdpt = bdpt::Scratch::default();
         for i in 0..count {
