@@ -12,6 +12,9 @@ use photon::output;
 use photon::run::{apply_options, simulate, RunOptions, StopReason};
 use photon::scene::{self, Scene};
 
+#[cfg(feature = "mpi")]
+mod mpi_run;
+
 #[derive(Parser)]
 #[command(name = "photon", version, about = "Forward Monte Carlo photon tracer: how much light lands where")]
 struct Cli {
@@ -224,7 +227,12 @@ fn main() -> ExitCode {
                 integrator: transport.integrator,
                 transport: transport.options(),
                 batches,
+                share: None,
             };
+            #[cfg(feature = "mpi")]
+            if mpi_run::launched_by_mpi() {
+                return mpi_run::run(&scene, out, &opts, quiet, &INTERRUPT);
+            }
             run(&scene, out, &opts, quiet)
         }
         Command::Info { scene } => info(&scene).map(|()| Outcome::Complete),

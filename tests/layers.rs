@@ -16,6 +16,8 @@ const LAYERS: &[&[&str]] = &[
     &["run"],
     &["output"],
     &["validate"],
+    // The binary's own module beside main.rs (the MPI driver, `--features mpi`): the top.
+    &["mpi_run"],
 ];
 
 /// Every `crate::name` a file names: in paths, and inside `use crate::{a, b::c}` groups.

@@ -441,6 +441,37 @@ impl Tallies {
         Ok(())
     }
 
+    /// Tallies holding exact totals `sums` (channels in `channels` order) and these counts, their
+    /// views rounded: a state file's or another rank's tallies.
+    pub fn from_sums(sums: TallySums, photons: u64, batches: u64, scatterings: [u64; 2], counters: Counters) -> Self {
+        let mut t = Tallies::new(0, 0);
+        for (view, s) in t.channels_mut().into_iter().zip(&sums.channels) {
+            *view = Channel::new(s.sum.len());
+        }
+        t.photons = photons;
+        t.batches = batches;
+        t.scatterings = scatterings[0];
+        t.scatterings_sq = scatterings[1];
+        t.counters = counters;
+        t.sums = Some(Box::new(sums));
+        t.round_views();
+        t
+    }
+
+    /// The exact totals the stopping rules read (incident and absorbed rows, photons, batches),
+    /// every other channel empty: what MPI ranks send each round for a collective decision.
+    pub fn decision_part(&self) -> Option<Tallies> {
+        let sums = self.sums.as_deref()?;
+        let channels = sums
+            .channels
+            .iter()
+            .enumerate()
+            .map(|(i, c)| if i < 2 { c.clone() } else { ChannelSums::new(0) })
+            .collect();
+        let part = TallySums { channels, escaped: ExactSum::default(), truncated: ExactSum::default() };
+        Some(Tallies::from_sums(part, self.photons, self.batches, [0, 0], Counters::default()))
+    }
+
     /// Rounds every f64 view from the exact totals (after `merge_run`, or a state file's read).
     pub fn round_views(&mut self) {
         if let Some(sums) = self.sums.take() {

@@ -116,8 +116,10 @@ pub struct RunInfo {
     /// The batches this run holds, first to last + 1: [0, n] but for a partial run
     /// (`--batches`), or the merge of parts that start past 0.
     pub batches: [u64; 2],
-    /// MPI ranks that traced the run (1 without MPI).
+    /// MPI ranks that traced the run (1 without MPI), and what coordinating them cost.
     pub ranks: u32,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mpi: Option<crate::run::MpiStats>,
     pub max_bounces: u32,
     pub mean_scatterings: f64,
     pub mean_scatterings_stderr: f64,
@@ -227,6 +229,7 @@ pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
         batch_photons: BATCH_PHOTONS,
         batches: [r.batches.0, r.batches.1],
         ranks: r.ranks,
+        mpi: r.mpi.clone(),
         max_bounces: scene.simulation.max_bounces,
         fom,
         image_mean_y: None,

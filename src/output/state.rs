@@ -253,11 +253,20 @@ impl<'a> Reader<'a> {
 /// Reads and checks a part's state file (a folder holding `state.photon`, or the file itself).
 pub fn read_part(path: &Path) -> Result<Part, Error> {
     let file = if path.is_dir() { path.join(STATE_FILE) } else { path.to_path_buf() };
-    let bad = |m: String| Error::Input(InputError::new(&file, "", None, m));
-    let bytes = std::fs::read(&file).map_err(|e| bad(format!("cannot read the partial run's state: {e}")))?;
-    decode(&bytes)
-        .map(|(header, counts, sums, film)| Part { path: file.clone(), header, counts, sums, film })
-        .map_err(|m| bad(format!("{m}; it is not a complete {STATE_FILE} of photon {}", env!("CARGO_PKG_VERSION"))))
+    let bytes = std::fs::read(&file).map_err(|e| {
+        Error::Input(InputError::new(&file, "", None, format!("cannot read the partial run's state: {e}")))
+    })?;
+    part_from_bytes(&bytes, &file)
+}
+
+/// A part from the bytes of a state (a file's, or another rank's); `origin` names it in messages.
+pub fn part_from_bytes(bytes: &[u8], origin: &Path) -> Result<Part, Error> {
+    decode(bytes)
+        .map(|(header, counts, sums, film)| Part { path: origin.to_path_buf(), header, counts, sums, film })
+        .map_err(|m| {
+            let m = format!("{m}; it is not a complete {STATE_FILE} of photon {}", env!("CARGO_PKG_VERSION"));
+            Error::Input(InputError::new(origin, "", None, m))
+        })
 }
 
 type Decoded = (StateHeader, Counts, TallySums, Option<FilmState>);
@@ -427,59 +436,15 @@ pub fn merge(scene: &Scene, parts: &[Part]) -> Result<RunResult, Error> {
             scene.path.display()
         )));
     }
-    let mut tallies = Tallies::for_run(scene);
-    let mut film: Option<Film> = None;
-    for p in parts {
-        let bad = |m: String| {
-            Error::Input(InputError::new(&p.path, "", None, format!("does not fit {}: {m}", scene.path.display())))
-        };
-        let mut part = Tallies::for_run(scene);
-        let expected: Vec<usize> = part.channels().iter().map(|c| c.len()).collect();
-        let found: Vec<usize> = p.sums.channels.iter().map(|c| c.sum.len()).collect();
-        if expected != found {
-            return Err(bad(format!("its tallies have {found:?} rows, the scene's {expected:?}")));
-        }
-        part.sums = Some(Box::new(p.sums.clone()));
-        part.photons = p.counts.photons;
-        part.batches = p.counts.batches;
-        part.scatterings = p.counts.scatterings;
-        part.scatterings_sq = p.counts.scatterings_sq;
-        part.counters = p.counts.counters;
-        tallies.merge_run(&part).map_err(bad)?;
-        if let Some(state) = &p.film {
-            let f = Film::from_state(FilmState {
-                width: state.width,
-                height: state.height,
-                pixels: state.pixels.clone(),
-                image_y_sq_over_n: state.image_y_sq_over_n,
-                photons: state.photons,
-                film_batches: state.film_batches,
-                camera: state.camera.clone(),
-            })
-            .ok_or_else(|| bad("its film's arrays do not fit its size".into()))?;
-            match film.as_mut() {
-                None => film = Some(f),
-                Some(acc) => acc.merge_run(&f).map_err(bad)?,
-            }
-        }
-    }
-    if let (Some(f), Some(cam)) = (&film, &scene.camera) {
-        if (f.width, f.height) != (cam.resolution[0] as usize, cam.resolution[1] as usize) {
-            return Err(Error::Usage(format!(
-                "the parts' film is {}×{} pixels, the scene's camera {}×{}",
-                f.width, f.height, cam.resolution[0], cam.resolution[1]
-            )));
-        }
-    }
-    Ok(RunResult {
-        tallies,
+    let mut r = RunResult {
+        tallies: Tallies::for_run(scene),
         emitted_w: h.emitted_w,
         seed: h.seed,
         threads: parts.iter().map(|p| p.header.threads).max().unwrap_or(1),
         // The parts' own times: what the run cost, wherever it ran.
         wall_seconds: parts.iter().map(|p| p.header.wall_seconds).sum(),
         stop_reason: StopReason::Photons,
-        film,
+        film: None,
         transport: h.transport,
         pilot: h.pilot,
         hero: h.hero,
@@ -487,5 +452,55 @@ pub fn merge(scene: &Scene, parts: &[Part]) -> Result<RunResult, Error> {
         batches: (parts[0].header.first_batch, parts[parts.len() - 1].header.end_batch),
         partial: false,
         ranks: 1,
-    })
+        mpi: None,
+    };
+    for p in parts {
+        add_part(scene, &mut r, p)?;
+    }
+    if let (Some(f), Some(cam)) = (&r.film, &scene.camera) {
+        if (f.width, f.height) != (cam.resolution[0] as usize, cam.resolution[1] as usize) {
+            return Err(Error::Usage(format!(
+                "the parts' film is {}×{} pixels, the scene's camera {}×{}",
+                f.width, f.height, cam.resolution[0], cam.resolution[1]
+            )));
+        }
+    }
+    Ok(r)
+}
+
+/// Adds a part's tallies and film to `r` (a run of `scene` that keeps exact sums).
+pub fn add_part(scene: &Scene, r: &mut RunResult, p: &Part) -> Result<(), Error> {
+    let bad = |m: String| {
+        Error::Input(InputError::new(&p.path, "", None, format!("does not fit {}: {m}", scene.path.display())))
+    };
+    let mut part = Tallies::for_run(scene);
+    let expected: Vec<usize> = part.channels().iter().map(|c| c.len()).collect();
+    let found: Vec<usize> = p.sums.channels.iter().map(|c| c.sum.len()).collect();
+    if expected != found {
+        return Err(bad(format!("its tallies have {found:?} rows, the scene's {expected:?}")));
+    }
+    part.sums = Some(Box::new(p.sums.clone()));
+    part.photons = p.counts.photons;
+    part.batches = p.counts.batches;
+    part.scatterings = p.counts.scatterings;
+    part.scatterings_sq = p.counts.scatterings_sq;
+    part.counters = p.counts.counters;
+    r.tallies.merge_run(&part).map_err(bad)?;
+    if let Some(state) = &p.film {
+        let f = Film::from_state(FilmState {
+            width: state.width,
+            height: state.height,
+            pixels: state.pixels.clone(),
+            image_y_sq_over_n: state.image_y_sq_over_n,
+            photons: state.photons,
+            film_batches: state.film_batches,
+            camera: state.camera.clone(),
+        })
+        .ok_or_else(|| bad("its film's arrays do not fit its size".into()))?;
+        match r.film.as_mut() {
+            None => r.film = Some(f),
+            Some(acc) => acc.merge_run(&f).map_err(bad)?,
+        }
+    }
+    Ok(())
 }

@@ -52,6 +52,9 @@ pub struct RunOptions {
     /// Trace only batches A..B (a partial run, to be merged with others); `photons` and the
     /// stopping targets then do not apply.
     pub batches: Option<(u64, u64)>,
+    /// (k, K): trace only every K-th batch from the k-th on, this process's share of a run split
+    /// over K (MPI ranks).
+    pub share: Option<(u64, u64)>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -100,8 +103,26 @@ pub struct RunResult {
     pub batches: (u64, u64),
     /// A partial run (`--batches`), whose exact state is written for `photon merge`.
     pub partial: bool,
-    /// MPI ranks that traced it (1 without MPI).
+    /// MPI ranks that traced it (1 without MPI), and what their coordination cost.
     pub ranks: u32,
+    pub mpi: Option<MpiStats>,
+}
+
+/// What splitting a run over MPI ranks cost (run.json `mpi`): timings, so nothing any result
+/// depends on.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct MpiStats {
+    /// Decision rounds held (every `round_batches` batches of each rank), the bytes rank 0
+    /// received for them in all, and the seconds rank 0 spent in them.
+    pub rounds: u64,
+    pub round_batches: u64,
+    pub round_bytes: u64,
+    pub round_seconds: f64,
+    /// The final tree reduction of the ranks' exact states: bytes sent in all, rank 0's seconds.
+    pub reduce_bytes: u64,
+    pub reduce_seconds: f64,
+    /// Each rank's seconds from start to the end of its share (load balance).
+    pub rank_seconds: Vec<f64>,
 }
 
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
@@ -220,6 +241,21 @@ pub fn simulate_observed(
     interrupt: &AtomicBool,
     observer: &mut dyn FnMut(Progress),
 ) -> Result<RunResult, Error> {
+    simulate_controlled(scene, opts, rel_error_surfaces, interrupt, &mut |p| {
+        observer(p);
+        None
+    })
+}
+
+/// `simulate_observed` with an observer that can stop the run after the batch it was shown (an
+/// MPI driver's collective decision): the run then holds exactly the batches merged so far.
+pub fn simulate_controlled(
+    scene: &Scene,
+    opts: &RunOptions,
+    rel_error_surfaces: &[usize],
+    interrupt: &AtomicBool,
+    observer: &mut dyn FnMut(Progress) -> Option<StopReason>,
+) -> Result<RunResult, Error> {
     let threads = opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -276,13 +312,19 @@ pub fn simulate_observed(
     };
     let (first_batch, end_batch) = opts.batches.unwrap_or((0, cap.div_ceil(BATCH_PHOTONS)));
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
+    // This process traces batches `batch_at(0), batch_at(1), …`: its local sequence, merged in
+    // that order (every batch of first..end, or one share of them).
+    let (share, shares) = opts.share.unwrap_or((0, 1));
+    let batch_at = |i: u64| first_batch + share + shares * i;
+    let local_batches = (end_batch - first_batch).saturating_sub(share).div_ceil(shares);
 
     let progress = opts
         .progress
         .then(|| {
             RunProgress::new(
                 opts,
-                (cap != MAX_PHOTONS || opts.photons.is_some()).then_some(cap - first_batch * BATCH_PHOTONS),
+                (cap != MAX_PHOTONS || opts.photons.is_some())
+                    .then_some((cap - first_batch * BATCH_PHOTONS).div_ceil(shares)),
                 start,
             )
         })
@@ -296,25 +338,25 @@ pub fn simulate_observed(
     // in hand short (within CANCEL_CHECK_PHOTONS photons), and only the unbroken run of batches
     // merged before it counts.
     let window = 2 * threads as u64;
-    let workers = (threads as u64).min(end_batch - first_batch).max(1) as usize;
+    let workers = (threads as u64).min(local_batches).max(1) as usize;
     let min_batches = match opts.transport.error_model() {
         crate::detectors::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
         crate::detectors::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
     };
     let mut failure: Option<String> = None;
-    let next = AtomicU64::new(first_batch);
-    let merged = AtomicU64::new(first_batch);
+    let next = AtomicU64::new(0);
+    let merged = AtomicU64::new(0);
     let (tx, rx) = std::sync::mpsc::channel();
     pool.in_place_scope(|scope| {
         for _ in 0..workers {
             let tx = tx.clone();
             let (next, merged, quit, kernel) = (&next, &merged, &quit, &kernel);
             scope.spawn(move |_| loop {
-                let b = next.fetch_add(1, Ordering::Relaxed);
-                if b >= end_batch || quit.load(Ordering::Relaxed) {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= local_batches || quit.load(Ordering::Relaxed) {
                     break;
                 }
-                while b >= merged.load(Ordering::Acquire) + window && !quit.load(Ordering::Relaxed) {
+                while i >= merged.load(Ordering::Acquire) + window && !quit.load(Ordering::Relaxed) {
                     std::thread::sleep(std::time::Duration::from_micros(100));
                 }
                 if quit.load(Ordering::Relaxed) {
@@ -322,30 +364,30 @@ pub fn simulate_observed(
                 }
                 // A panic in a batch must end the run with an error, not leave the merge waiting
                 // for a batch that never comes.
-                let traced =
-                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| kernel.trace_batch(b, photons_in(b))))
-                        .map_err(|e| {
-                            quit.store(true, Ordering::Relaxed);
-                            let what = e
-                                .downcast_ref::<&str>()
-                                .map(|s| s.to_string())
-                                .or_else(|| e.downcast_ref::<String>().cloned());
-                            format!("batch {b} failed: {}", what.unwrap_or_else(|| "panic".into()))
-                        });
+                let traced = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    let b = batch_at(i);
+                    kernel.trace_batch(b, photons_in(b))
+                }))
+                .map_err(|e| {
+                    quit.store(true, Ordering::Relaxed);
+                    let what =
+                        e.downcast_ref::<&str>().map(|s| s.to_string()).or_else(|| e.downcast_ref::<String>().cloned());
+                    format!("batch {} failed: {}", batch_at(i), what.unwrap_or_else(|| "panic".into()))
+                });
                 // A batch cut short by the stop is never merged; a failure is always reported.
-                if (traced.is_ok() && quit.load(Ordering::Relaxed)) || tx.send((b, traced)).is_err() {
+                if (traced.is_ok() && quit.load(Ordering::Relaxed)) || tx.send((i, traced)).is_err() {
                     break;
                 }
             });
         }
         drop(tx);
         let mut pending = std::collections::BTreeMap::new();
-        let mut want = first_batch;
+        let mut want = 0u64;
         // A time budget or Ctrl-C ends the run when it comes, not when the next batch does: the
         // merge waits at most POLL for a batch, and once one batch is in, a stop cancels the
         // batches in hand (they end within CANCEL_CHECK_PHOTONS photons and are dropped).
         let stop_now = |want: u64| -> Option<StopReason> {
-            if want == first_batch {
+            if want == 0 {
                 None
             } else if interrupt.load(Ordering::Relaxed) {
                 Some(StopReason::Interrupted)
@@ -355,7 +397,7 @@ pub fn simulate_observed(
                 None
             }
         };
-        'merge: while want < end_batch {
+        'merge: while want < local_batches {
             let (b, result) = match rx.recv_timeout(POLL) {
                 Ok(received) => received,
                 Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
@@ -386,12 +428,15 @@ pub fn simulate_observed(
                 }
                 want += 1;
                 merged.store(want, Ordering::Release);
-                observer(Progress {
+                if let Some(reason) = observer(Progress {
                     tallies: &tallies,
                     film: film.as_ref(),
                     emitted_w: emitter.total_power_w,
                     threads,
-                });
+                }) {
+                    stop = reason;
+                    break 'merge;
+                }
                 let worst = opts
                     .rel_error
                     .and_then(|_| tallies.worst_rel_error(rel_error_surfaces, opts.transport.error_model()));
@@ -443,6 +488,7 @@ pub fn simulate_observed(
         batches: (first_batch, first_batch + tallies.batches),
         partial: opts.batches.is_some(),
         ranks: 1,
+        mpi: None,
         tallies,
     })
 }
