@@ -280,6 +280,8 @@ fn run_rank(
     let mut step = 1;
     while step < ranks {
         if rank % (2 * step) == step {
+            // The batches it holds, by count (a state's check): its own and its subtree's.
+            result.batches = (0, result.tallies.batches);
             let bytes = match output::state::encode(&scene, &result) {
                 Ok(b) => b,
                 Err(_) => world.abort(1),
