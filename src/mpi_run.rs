@@ -127,15 +127,28 @@ pub fn run(
     let code = match run_rank(&world, rank, ranks, scene_path, out, opts, quiet, interrupt) {
         Ok(Some(StopReason::Interrupted)) => 3,
         Ok(_) => 0,
-        Err(e) => {
-            if rank == 0 {
-                eprintln!("error: {e}");
+        Err(f) => {
+            if let Some(m) = f.message {
+                eprintln!("error: {m}");
             }
-            e.exit_code() as u8
+            f.code
         }
     };
     drop(universe);
     ExitCode::from(code)
+}
+
+/// How a rank ends early: a message to print here (None where another rank's says it) and the
+/// exit status.
+struct Failure {
+    message: Option<String>,
+    code: u8,
+}
+
+impl From<Error> for Failure {
+    fn from(e: Error) -> Self {
+        Failure { message: Some(e.to_string()), code: e.exit_code() as u8 }
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -148,30 +161,44 @@ fn run_rank(
     opts: &RunOptions,
     quiet: bool,
     interrupt: &AtomicBool,
-) -> Result<Option<StopReason>, Error> {
+) -> Result<Option<StopReason>, Failure> {
     let start = Instant::now();
     let root = world.process_at_rank(0);
-    let mut scene = photon::scene::load(scene_path)?;
+    // Every rank loads and checks alike, and rank 0 tries the output folder; no rank goes on
+    // unless all can (a rank that returned alone would leave the others waiting for it).
+    let ready = (|| {
+        let mut scene = photon::scene::load(scene_path)?;
+        let chosen = apply_options(&mut scene, opts)?;
+        let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
+        let image = scene.camera.is_some() && scene.effects.camera;
+        let staged = if rank == 0 {
+            let names = output::run_file_names(&scene, image, opts.batches.is_some());
+            Some(output::OutputDir::prepare(&out_dir, &names)?)
+        } else {
+            None
+        };
+        Ok::<_, Error>((scene, chosen, out_dir, staged))
+    })();
+    let mut all_ready = 0u8;
+    world.all_reduce_into(&(ready.is_ok() as u8), &mut all_ready, mpi::collective::SystemOperation::min());
+    let mut root_ready = ready.is_ok() as u8;
+    root.broadcast_into(&mut root_ready);
+    let (scene, chosen, out_dir, staged) = match ready {
+        Ok(r) if all_ready == 1 => r,
+        Ok(_) if rank == 0 => {
+            return Err(Error::Usage("some ranks cannot run the scene: see their messages".into()).into())
+        }
+        Ok(_) => return Err(Failure { message: None, code: 2 }),
+        Err(e) if rank == 0 => return Err(e.into()),
+        // Rank 0's message speaks for all when it failed too (the usual case: a bad scene).
+        Err(e) if root_ready == 0 => return Err(Failure { message: None, code: e.exit_code() as u8 }),
+        Err(e) => return Err(Failure { message: Some(format!("rank {rank}: {e}")), code: e.exit_code() as u8 }),
+    };
     if rank == 0 {
         for w in &scene.warnings {
             eprintln!("warning: {w}");
         }
     }
-    let chosen = apply_options(&mut scene, opts)?;
-    let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
-    let image = scene.camera.is_some() && scene.effects.camera;
-    // Rank 0 tries the output folder; every rank learns whether it may go on.
-    let staged = if rank == 0 {
-        output::OutputDir::prepare(&out_dir, &output::run_file_names(&scene, image, opts.batches.is_some())).map(Some)
-    } else {
-        Ok(None)
-    };
-    let mut ok = staged.is_ok() as u8;
-    root.broadcast_into(&mut ok);
-    if ok == 0 {
-        return Err(staged.err().unwrap_or_else(|| Error::Usage("rank 0 cannot write the output folder".into())));
-    }
-    let staged = staged?;
 
     // Each rank's share, with no stopping rule of its own: the rounds decide.
     let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();

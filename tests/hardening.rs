@@ -612,7 +612,7 @@ fn a_scene_of_point_lights_and_detectors_prints_no_empty_table() {
 #[test]
 fn the_reference_names_every_flag_and_every_scene_key() {
     let reference = fs::read_to_string(format!("{ROOT}/docs/reference.md")).unwrap();
-    for command in ["run", "info", "validate", "converge"] {
+    for command in ["run", "info", "validate", "converge", "merge"] {
         let help = String::from_utf8_lossy(&photon(&[command, "--help"]).stdout).into_owned();
         for flag in help.split_whitespace().filter(|w| w.starts_with("--") && w.len() > 2) {
             let flag = flag.trim_end_matches(|c: char| !c.is_ascii_alphanumeric() && c != '-');

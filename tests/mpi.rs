@@ -97,3 +97,30 @@ fn a_rel_error_stop_under_three_ranks_reproduces_from_its_photon_count() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn bad_input_under_mpi_exits_2_with_one_message() {
+    let dir = common::temp_dir("mpi-bad");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "bad").unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let cornell = scene("cornell_box.toml");
+    // A bad scene fails on every rank; an --out only rank 0 tries fails there alone: either way
+    // no rank starts, and one message is printed.
+    for args in [
+        vec!["run", bad.to_str().unwrap(), "--quiet"],
+        vec!["run", cornell.as_str(), "--quiet", "--out", file.to_str().unwrap()],
+    ] {
+        let out = Command::new("mpirun")
+            .args(["--allow-run-as-root", "--oversubscribe", "-n", "2", BIN])
+            .args(&args)
+            .output()
+            .expect("mpirun runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        // photon's own lines (mpirun adds a report of its own).
+        assert_eq!(stderr.lines().filter(|l| l.starts_with("error:")).count(), 1, "{args:?}: {stderr}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
