@@ -259,7 +259,7 @@ pub fn triangulate(
             (box_triangles(DVec3::from(*min), DVec3::from(*max)), tangents, transform)
         }
         ShapeSpec::Mesh { file, key_line, transform } => {
-            let faces = obj::read_obj(file, warnings).map_err(|mut e| {
+            let faces = read_mesh(file, warnings).map_err(|mut e| {
                 e.message = format!("{} (mesh named by `{key}` at {}:{key_line})", e.message, src.file.display());
                 e
             })?;
@@ -383,5 +383,18 @@ mod tests {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
             assert!(n.dot((t[0] + t[1] + t[2]) / 3.0) > 0.0);
         }
+    }
+}
+
+/// A mesh file's triangles, its format chosen by extension: `.stl` (ASCII or binary STL), else
+/// Wavefront OBJ. PLY and glTF are not read yet, and are refused rather than misread as OBJ.
+fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTriangle>, InputError> {
+    let ext = file.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("stl") => super::stl::read_stl(file, warnings),
+        Some(e @ ("ply" | "gltf" | "glb")) => {
+            Err(InputError::new(file, "", None, format!(".{e} meshes are not read yet: give the mesh as OBJ or STL")))
+        }
+        _ => obj::read_obj(file, warnings),
     }
 }

@@ -1,0 +1,219 @@
+//! Mesh formats: an STL file (ASCII, binary, binary whose header starts with "solid") gives the
+//! triangles the OBJ of the same mesh gives, so the same flux bit for bit; the scene's `unit`
+//! applies to it; malformed files are errors naming the file and the line or byte offset.
+
+use std::path::{Path, PathBuf};
+
+mod common;
+
+/// A closed box with corners at f32-exact coordinates (binary STL stores f32), as triangles
+/// wound counterclockwise seen from outside.
+fn box_triangles(scale: f64) -> Vec<[[f64; 3]; 3]> {
+    let (lo, hi) = ([-0.5, -0.25, 0.125], [0.75, 0.5, 1.0]);
+    let p = |x: usize, y: usize, z: usize| {
+        [[lo[0], hi[0]][x] * scale, [lo[1], hi[1]][y] * scale, [lo[2], hi[2]][z] * scale]
+    };
+    let quads = [
+        [p(0, 0, 0), p(0, 1, 0), p(1, 1, 0), p(1, 0, 0)], // −z
+        [p(0, 0, 1), p(1, 0, 1), p(1, 1, 1), p(0, 1, 1)], // +z
+        [p(0, 0, 0), p(1, 0, 0), p(1, 0, 1), p(0, 0, 1)], // −y
+        [p(0, 1, 0), p(0, 1, 1), p(1, 1, 1), p(1, 1, 0)], // +y
+        [p(0, 0, 0), p(0, 0, 1), p(0, 1, 1), p(0, 1, 0)], // −x
+        [p(1, 0, 0), p(1, 1, 0), p(1, 1, 1), p(1, 0, 1)], // +x
+    ];
+    quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect()
+}
+
+fn obj_text(tris: &[[[f64; 3]; 3]]) -> String {
+    let mut s = String::new();
+    for t in tris {
+        for v in t {
+            s += &format!("v {} {} {}\n", v[0], v[1], v[2]);
+        }
+    }
+    for k in 0..tris.len() {
+        s += &format!("f {} {} {}\n", 3 * k + 1, 3 * k + 2, 3 * k + 3);
+    }
+    s
+}
+
+fn ascii_stl(tris: &[[[f64; 3]; 3]]) -> String {
+    let mut s = "solid box\n".to_string();
+    for t in tris {
+        // A wrong normal: facet normals are ignored, the winding decides.
+        s += "  facet normal 0 0 1\n    outer loop\n";
+        for v in t {
+            s += &format!("      vertex {:e} {:e} {:e}\n", v[0], v[1], v[2]);
+        }
+        s += "    endloop\n  endfacet\n";
+    }
+    s + "endsolid box\n"
+}
+
+fn binary_stl(tris: &[[[f64; 3]; 3]], header: &[u8]) -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b[..header.len()].copy_from_slice(header);
+    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+    for t in tris {
+        b.extend_from_slice(&[0u8; 12]);
+        for v in t {
+            for x in v {
+                b.extend_from_slice(&(*x as f32).to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0u8; 2]);
+    }
+    b
+}
+
+/// The box (white Lambertian) lit by a quad light above it, the mesh from `file`.
+fn scene_with(file: &Path, unit: &str) -> String {
+    let s = if unit == "mm" { 1000.0 } else { 1.0 };
+    format!(
+        r#"[scene]
+unit = "{unit}"
+
+[materials.white]
+type = "lambertian"
+reflectance = 0.6
+
+[[surfaces]]
+name = "part"
+material = "white"
+shape = {{ type = "mesh", file = "{}" }}
+
+[[surfaces]]
+name = "floor"
+material = "white"
+shape = {{ type = "quad", corners = [[-{f}, -{f}, 0], [{f}, -{f}, 0], [{f}, {f}, 0], [-{f}, {f}, 0]] }}
+
+[[lights]]
+name = "lamp"
+power_w = 10
+shape = {{ type = "quad", corners = [[-{l}, -{l}, {h}], [-{l}, {l}, {h}], [{l}, {l}, {h}], [{l}, -{l}, {h}]] }}
+"#,
+        file.display(),
+        f = 3.0 * s,
+        l = 0.5 * s,
+        h = 2.0 * s,
+    )
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn flux_bits(f: &photon::output::Flux) -> Vec<(String, u64, u64, u64)> {
+    f.surfaces
+        .iter()
+        .map(|r| (r.name.clone(), r.area_m2.to_bits(), r.incident_w.to_bits(), r.absorbed_w.to_bits()))
+        .collect()
+}
+
+#[test]
+fn stl_files_give_the_triangles_of_the_same_obj() {
+    let dir = common::temp_dir("meshes-stl");
+    let tris = box_triangles(1.0);
+    let obj = write(&dir, "box.obj", obj_text(&tris).as_bytes());
+    let reference = flux_bits(&common::run(&scene_with(&obj, "m"), 40_000, 3));
+    let variants = [
+        ("ascii.stl", ascii_stl(&tris).into_bytes()),
+        ("binary.stl", binary_stl(&tris, b"exported by some CAD")),
+        // Binary files that start with "solid", as many CAD exporters write them.
+        ("solid-binary.STL", binary_stl(&tris, b"solid box, but binary")),
+        // CRLF line ends and blank lines.
+        ("crlf.stl", ascii_stl(&tris).replace('\n', "\r\n\r\n").into_bytes()),
+    ];
+    for (name, bytes) in variants {
+        let file = write(&dir, name, &bytes);
+        assert_eq!(flux_bits(&common::run(&scene_with(&file, "m"), 40_000, 3)), reference, "{name}");
+    }
+    // A part drawn in millimetres, in a scene in millimetres: the same box in metres.
+    let mm = write(&dir, "mm.stl", &binary_stl(&box_triangles(1000.0), b"mm"));
+    let s = common::scene(&scene_with(&mm, "mm"));
+    let m = common::scene(&scene_with(&obj, "m"));
+    assert!((s.surfaces[0].area_m2 - m.surfaces[0].area_m2).abs() <= 1e-12 * m.surfaces[0].area_m2);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_zero_area_stl_triangle_is_skipped_with_a_warning() {
+    let dir = common::temp_dir("meshes-flat");
+    let mut tris = box_triangles(1.0);
+    tris.push([[0.0, 0.0, 0.5], [0.0, 0.0, 0.5], [0.25, 0.0, 0.5]]);
+    let file = write(&dir, "flat.stl", &binary_stl(&tris, b""));
+    let s = common::scene(&scene_with(&file, "m"));
+    assert_eq!(s.surfaces[0].triangles, 12);
+    assert!(
+        s.warnings.iter().any(|w| w.contains("flat.stl") && w.contains("triangle 13 (byte 684)")),
+        "{:?}",
+        s.warnings
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn malformed_stl_files_name_the_file_and_the_line_or_byte() {
+    let dir = common::temp_dir("meshes-bad");
+    let good = ascii_stl(&box_triangles(1.0));
+    let binary = binary_stl(&box_triangles(1.0), b"");
+    let mut nan = binary.clone();
+    // Triangle 2's first corner's y: byte 84 + 50 + 12 + 4.
+    nan[84 + 50 + 16..84 + 50 + 20].copy_from_slice(&f32::NAN.to_le_bytes());
+    let mut count_too_large = binary.clone();
+    count_too_large[80..84].copy_from_slice(&13u32.to_le_bytes());
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("number.stl", good.replacen("vertex -5e-1", "vertex -5e-1x", 1).into_bytes(), ":4: malformed vertex"),
+        (
+            "two-coords.stl",
+            good.replacen("vertex -5e-1 -2.5e-1 1.25e-1", "vertex 1 2", 1).into_bytes(),
+            ":4: malformed vertex",
+        ),
+        ("inf.stl", good.replacen("vertex -5e-1", "vertex inf", 1).into_bytes(), ":4: malformed vertex"),
+        (
+            "four.stl",
+            good.replacen("    endloop", "      vertex 0 0 0\n    endloop", 1).into_bytes(),
+            ":7: a facet has more than 3 vertices",
+        ),
+        (
+            "two.stl",
+            good.replacen("      vertex 7.5e-1 -2.5e-1 1.25e-1\n", "", 1).into_bytes(),
+            "has 2 vertices, not 3",
+        ),
+        ("keyword.stl", good.replacen("outer loop", "outer lop", 1).into_bytes(), ":3: expected `outer loop`"),
+        (
+            "stray.stl",
+            good.replacen("  endfacet", "  vertex 1 1 1\n  endfacet", 1).into_bytes(),
+            "unexpected `vertex` inside the facet begun at line 2",
+        ),
+        ("unclosed.stl", good.replace("endsolid box\n", "").into_bytes(), "ends without `endsolid`"),
+        (
+            "cut.stl",
+            good.lines().take(5).collect::<Vec<_>>().join("\n").into_bytes(),
+            ":5: the file ends inside the facet begun at line 2",
+        ),
+        ("after.stl", (good.clone() + "facet normal 0 0 1\n").into_bytes(), "after `endsolid`"),
+        ("nan.stl", nan, "triangle 2 (byte 150) has a coordinate that is not a finite number"),
+        ("truncated.stl", binary[..binary.len() - 7].to_vec(), "must be 684 bytes long, but the file has 677"),
+        ("count.stl", count_too_large, "header gives 13 triangles must be 734 bytes long"),
+        ("tiny.stl", b"\x00\x01".to_vec(), "too short for a binary STL"),
+        ("empty-ascii.stl", b"solid nothing\nendsolid nothing\n".to_vec(), "no triangles with non-zero area"),
+        ("empty-binary.stl", binary_stl(&[], b""), "no triangles with non-zero area"),
+        ("not-yet.ply", b"ply\n".to_vec(), ".ply meshes are not read yet"),
+    ];
+    assert!(cases.len() >= 10);
+    for (name, bytes, expected) in cases {
+        let file = write(&dir, name, &bytes);
+        let toml = scene_with(&file, "m");
+        let e = match photon::scene::load_str(Path::new("tests/inline.toml"), &toml) {
+            Ok(_) => panic!("{name}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(name), "{name}: the message should name the file: {e}");
+        assert!(e.contains(expected), "{name}: the message should say \"{expected}\": {e}");
+        assert!(e.contains("shape") || e.contains("surfaces"), "{name}: the message should name the scene key: {e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
