@@ -201,7 +201,7 @@ fn malformed_stl_files_name_the_file_and_the_line_or_byte() {
         ("tiny.stl", b"\x00\x01".to_vec(), "too short for a binary STL"),
         ("empty-ascii.stl", b"solid nothing\nendsolid nothing\n".to_vec(), "no triangles with non-zero area"),
         ("empty-binary.stl", binary_stl(&[], b""), "no triangles with non-zero area"),
-        ("not-yet.ply", b"ply\n".to_vec(), ".ply meshes are not read yet"),
+        ("not-yet.gltf", b"{}".to_vec(), ".gltf meshes are not read yet"),
     ];
     assert!(cases.len() >= 10);
     for (name, bytes, expected) in cases {
@@ -214,6 +214,133 @@ fn malformed_stl_files_name_the_file_and_the_line_or_byte() {
         assert!(e.contains(name), "{name}: the message should name the file: {e}");
         assert!(e.contains(expected), "{name}: the message should say \"{expected}\": {e}");
         assert!(e.contains("shape") || e.contains("surfaces"), "{name}: the message should name the scene key: {e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The box as a PLY of 6 quads (24 vertices, each with a normal and a colour byte to read past),
+/// and an `edge` element after the faces: `format` is "ascii", "binary_little_endian" or
+/// "binary_big_endian"; `double` stores x, y, z as float64.
+fn ply(format: &str, double: bool) -> Vec<u8> {
+    let tris = box_triangles(1.0);
+    let quads: Vec<[[f64; 3]; 4]> = tris.chunks(2).map(|t| [t[0][0], t[0][1], t[0][2], t[1][2]]).collect();
+    let coord = if double { "double" } else { "float" };
+    let mut b = format!(
+        "ply\nformat {format} 1.0\ncomment made by a test\nelement vertex 24\nproperty {coord} x\n\
+         property {coord} y\nproperty {coord} z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         property uchar red\nelement face 6\nproperty list uchar int vertex_indices\nelement edge 1\n\
+         property int vertex1\nproperty int vertex2\nend_header\n"
+    )
+    .into_bytes();
+    let big = format == "binary_big_endian";
+    let f32b = |x: f64| if big { (x as f32).to_be_bytes().to_vec() } else { (x as f32).to_le_bytes().to_vec() };
+    let f64b = |x: f64| if big { x.to_be_bytes().to_vec() } else { x.to_le_bytes().to_vec() };
+    let i32b = |x: i32| if big { x.to_be_bytes().to_vec() } else { x.to_le_bytes().to_vec() };
+    for q in &quads {
+        for v in q {
+            if format == "ascii" {
+                b.extend(format!("{} {} {} 0 0 1 255\n", v[0], v[1], v[2]).bytes());
+            } else {
+                for x in v {
+                    b.extend(if double { f64b(*x) } else { f32b(*x) });
+                }
+                for x in [0.0, 0.0, 1.0] {
+                    b.extend(f32b(x));
+                }
+                b.push(255);
+            }
+        }
+    }
+    for k in 0..6i32 {
+        if format == "ascii" {
+            b.extend(format!("4 {} {} {} {}\n", 4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3).bytes());
+        } else {
+            b.push(4);
+            for i in 0..4 {
+                b.extend(i32b(4 * k + i));
+            }
+        }
+    }
+    if format == "ascii" {
+        b.extend(b"0 1\n");
+    } else {
+        b.extend(i32b(0));
+        b.extend(i32b(1));
+    }
+    b
+}
+
+#[test]
+fn ply_files_give_the_triangles_of_the_same_obj() {
+    let dir = common::temp_dir("meshes-ply");
+    let obj = write(&dir, "box.obj", obj_text(&box_triangles(1.0)).as_bytes());
+    let reference = flux_bits(&common::run(&scene_with(&obj, "m"), 40_000, 3));
+    for (name, format, double) in [
+        ("ascii.ply", "ascii", false),
+        ("little.ply", "binary_little_endian", false),
+        ("big.ply", "binary_big_endian", false),
+        ("double.ply", "binary_little_endian", true),
+    ] {
+        let file = write(&dir, name, &ply(format, double));
+        assert_eq!(flux_bits(&common::run(&scene_with(&file, "m"), 40_000, 3)), reference, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn malformed_ply_files_name_the_file_and_the_line_or_byte() {
+    let dir = common::temp_dir("meshes-ply-bad");
+    let ascii = String::from_utf8(ply("ascii", false)).unwrap();
+    let little = ply("binary_little_endian", false);
+    // The header has 17 lines; the ASCII body's first vertex is line 18.
+    let header_end = little.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    let mut bad_index = little.clone();
+    // Face 1's first index: after 24 vertices of 7 values (6 floats + 1 byte) and the count byte.
+    let at = header_end + 24 * 25 + 1;
+    bad_index[at..at + 4].copy_from_slice(&99i32.to_le_bytes());
+    let mut nan = little.clone();
+    nan[header_end + 4..header_end + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("first.ply", ascii.replacen("ply", "plx", 1).into_bytes(), ":1: the first line must be `ply`"),
+        ("format.ply", ascii.replacen("format ascii", "format text", 1).into_bytes(), ":2: unknown format \"text\""),
+        (
+            "type.ply",
+            ascii.replacen("property float nx", "property quad nx", 1).into_bytes(),
+            ":8: unknown type \"quad\"",
+        ),
+        (
+            "orphan.ply",
+            ascii.replacen("comment made by a test", "property float w", 1).into_bytes(),
+            ":3: a property before any element",
+        ),
+        ("header.ply", ascii.replacen("end_header", "end_headr", 1).into_bytes(), "no `end_header` line"),
+        ("noz.ply", ascii.replacen("property float z", "property float w", 1).into_bytes(), "lacks x, y or z"),
+        (
+            "count.ply",
+            ascii.replacen("element vertex 24", "element vertex 99999999", 1).into_bytes(),
+            "exceeds the file's",
+        ),
+        ("word.ply", ascii.replacen("0 0 1 255", "0 0 one 255", 1).into_bytes(), ":18: \"one\" is not a number"),
+        ("short.ply", ascii.replacen("0 1\n", "", 1).into_bytes(), "the file ends before its elements do"),
+        ("cut.ply", little[..little.len() - 3].to_vec(), "ends at byte"),
+        ("index.ply", bad_index, "face 1 refers to vertex 99"),
+        ("two.ply", ascii.replacen("4 0 1 2 3", "2 0 1", 1).into_bytes(), "face 1 has 2 vertices"),
+        ("nan.ply", nan, "vertex 1"),
+        (
+            "order.ply",
+            ascii.replacen("element vertex 24", "element face 0\nelement vertex 24", 1).into_bytes(),
+            "comes before `vertex`",
+        ),
+    ];
+    for (name, bytes, expected) in cases {
+        let file = write(&dir, name, &bytes);
+        let toml = scene_with(&file, "m");
+        let e = match photon::scene::load_str(Path::new("tests/inline.toml"), &toml) {
+            Ok(_) => panic!("{name}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(name), "{name}: the message should name the file: {e}");
+        assert!(e.contains(expected), "{name}: the message should say \"{expected}\": {e}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -8,6 +8,7 @@ pub mod ies;
 mod load;
 pub mod map;
 mod obj;
+mod ply;
 mod stl;
 pub(crate) mod shapes;
 pub mod volume;

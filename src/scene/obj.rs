@@ -22,7 +22,7 @@ pub struct ObjTriangle {
 /// or the triangle's own where those two coincide).
 /// With P = P₀ + (u − u₀)∂P/∂u + (v − v₀)∂P/∂v on the triangle, the edges e₁ = P₁ − P₀,
 /// e₂ = P₂ − P₀ and their (Δu, Δv) give ∂P/∂u = (Δv₂ e₁ − Δv₁ e₂)/(Δu₁Δv₂ − Δu₂Δv₁).
-fn tangent(t: &[DVec3; 3], uv: Option<[DVec2; 3]>, first_edge: DVec3) -> DVec3 {
+pub(super) fn tangent(t: &[DVec3; 3], uv: Option<[DVec2; 3]>, first_edge: DVec3) -> DVec3 {
     if let Some(q) = uv {
         let (d1, d2) = (q[1] - q[0], q[2] - q[0]);
         let det = d1.x * d2.y - d2.x * d1.y;

@@ -387,13 +387,14 @@ mod tests {
 }
 
 /// A mesh file's triangles, its format chosen by extension: `.stl` (ASCII or binary STL), else
-/// Wavefront OBJ. PLY and glTF are not read yet, and are refused rather than misread as OBJ.
+/// `.ply`, else Wavefront OBJ. glTF is not read yet, and is refused rather than misread as OBJ.
 fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTriangle>, InputError> {
     let ext = file.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match ext.as_deref() {
         Some("stl") => super::stl::read_stl(file, warnings),
-        Some(e @ ("ply" | "gltf" | "glb")) => {
-            Err(InputError::new(file, "", None, format!(".{e} meshes are not read yet: give the mesh as OBJ or STL")))
+        Some("ply") => super::ply::read_ply(file, warnings),
+        Some(e @ ("gltf" | "glb")) => {
+            Err(InputError::new(file, "", None, format!(".{e} meshes are not read yet: give the mesh as OBJ, STL or PLY")))
         }
         _ => obj::read_obj(file, warnings),
     }
