@@ -296,6 +296,8 @@ fn merge(
     let h = parts[0].header.clone();
     let scene_path = scene_path.unwrap_or_else(|| PathBuf::from(&h.scene_absolute));
     let mut scene = load_warn(&scene_path)?;
+    // run.json names the scene as the parts' runs did (as given), wherever it was loaded from.
+    scene.path = PathBuf::from(&h.scene);
     // The parts' options, as `apply_options` set them for their runs.
     scene.simulation.seed = h.seed;
     scene.simulation.max_bounces = h.max_bounces;

@@ -118,10 +118,15 @@ pub fn run(
     quiet: bool,
     interrupt: &AtomicBool,
 ) -> ExitCode {
-    let Some((universe, _)) = mpi::initialize_with_threading(mpi::Threading::Funneled) else {
+    let Some((universe, threading)) = mpi::initialize_with_threading(mpi::Threading::Funneled) else {
         eprintln!("error: MPI could not be initialised");
         return ExitCode::from(1);
     };
+    // Worker threads run beside the main thread's MPI calls.
+    if threading < mpi::Threading::Funneled {
+        eprintln!("error: this MPI library does not support threads (MPI_THREAD_FUNNELED)");
+        return ExitCode::from(1);
+    }
     let world = universe.world();
     let (rank, ranks) = (world.rank() as u64, world.size() as u64);
     let code = match run_rank(&world, rank, ranks, scene_path, out, opts, quiet, interrupt) {
@@ -222,17 +227,19 @@ fn run_rank(
         share: Some((rank, ranks)),
         ..opts.clone()
     };
-    // Rounds every rank can hold in full: past them the ranks finish their shares undisturbed.
-    let full_rounds = total_batches / (ROUND_BATCHES * ranks);
+    // Rounds of up to ROUND_BATCHES (fewer in a short run, so that it holds one), as many as
+    // every rank can hold in full: past them the ranks finish their shares undisturbed.
+    let round = (total_batches / ranks).clamp(1, ROUND_BATCHES);
+    let full_rounds = total_batches / (round * ranks);
     let min_batches = match opts.transport.error_model() {
         photon::detectors::tally::ErrorModel::Histories => MIN_BATCHES_FOR_REL_ERROR,
         photon::detectors::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
     };
-    let mut stats = MpiStats { round_batches: ROUND_BATCHES, ..MpiStats::default() };
+    let mut stats = MpiStats { round_batches: round, ..MpiStats::default() };
     let never = AtomicBool::new(false);
     let mut observer = |p: photon::run::Progress| -> Option<StopReason> {
         let mine = p.tallies.batches;
-        if mine % ROUND_BATCHES != 0 || mine / ROUND_BATCHES > full_rounds {
+        if mine % round != 0 || mine / round > full_rounds {
             return None;
         }
         let t0 = Instant::now();

@@ -199,6 +199,12 @@ fn malformed_stl_files_name_the_file_and_the_line_or_byte() {
         ("truncated.stl", binary[..binary.len() - 7].to_vec(), "must be 684 bytes long, but the file has 677"),
         ("count.stl", count_too_large, "header gives 13 triangles must be 734 bytes long"),
         ("tiny.stl", b"\x00\x01".to_vec(), "too short for a binary STL"),
+        // A CAD binary file whose header starts with "solid", cut short: still reported as binary.
+        (
+            "solid-cut.stl",
+            binary_stl(&box_triangles(1.0), b"solid part")[..677].to_vec(),
+            "must be 684 bytes long, but the file has 677",
+        ),
         ("empty-ascii.stl", b"solid nothing\nendsolid nothing\n".to_vec(), "no triangles with non-zero area"),
         ("empty-binary.stl", binary_stl(&[], b""), "no triangles with non-zero area"),
         ("not-yet.gltf", b"{}".to_vec(), ".gltf meshes are not read yet"),
@@ -300,6 +306,8 @@ fn malformed_ply_files_name_the_file_and_the_line_or_byte() {
     bad_index[at..at + 4].copy_from_slice(&99i32.to_le_bytes());
     let mut nan = little.clone();
     nan[header_end + 4..header_end + 8].copy_from_slice(&f32::NAN.to_le_bytes());
+    // Offsets are the file's: the cut file ends at its own length.
+    let cut_message = format!("the file ends at byte {} before its elements do", little.len() - 3);
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("first.ply", ascii.replacen("ply", "plx", 1).into_bytes(), ":1: the first line must be `ply`"),
         ("format.ply", ascii.replacen("format ascii", "format text", 1).into_bytes(), ":2: unknown format \"text\""),
@@ -322,7 +330,12 @@ fn malformed_ply_files_name_the_file_and_the_line_or_byte() {
         ),
         ("word.ply", ascii.replacen("0 0 1 255", "0 0 one 255", 1).into_bytes(), ":18: \"one\" is not a number"),
         ("short.ply", ascii.replacen("0 1\n", "", 1).into_bytes(), "the file ends before its elements do"),
-        ("cut.ply", little[..little.len() - 3].to_vec(), "ends at byte"),
+        ("cut.ply", little[..little.len() - 3].to_vec(), &cut_message),
+        (
+            "hollow.ply",
+            ascii.replacen("property int vertex1\nproperty int vertex2\n", "", 1).into_bytes(),
+            "the element `edge` has items but no properties",
+        ),
         ("index.ply", bad_index, "face 1 refers to vertex 99"),
         ("two.ply", ascii.replacen("4 0 1 2 3", "2 0 1", 1).into_bytes(), "face 1 has 2 vertices"),
         ("nan.ply", nan, "vertex 1"),

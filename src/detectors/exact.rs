@@ -48,7 +48,8 @@ impl ExactSum {
         let bits = x.to_bits();
         let biased = ((bits >> 52) & 0x7ff) as i32;
         if biased == 0x7ff {
-            self.top = POISONED;
+            // Words left behind would make equal sums differ by the order they were poisoned in.
+            *self = ExactSum { top: POISONED, words: [0; 3] };
             return;
         }
         let fraction = bits & ((1 << 52) - 1);
@@ -96,7 +97,7 @@ impl ExactSum {
             return;
         }
         if other.top == POISONED {
-            self.top = POISONED;
+            *self = ExactSum { top: POISONED, words: [0; 3] };
         }
         if self.top == POISONED {
             return;

@@ -253,9 +253,21 @@ impl<'a> Reader<'a> {
 /// Reads and checks a part's state file (a folder holding `state.photon`, or the file itself).
 pub fn read_part(path: &Path) -> Result<Part, Error> {
     let file = if path.is_dir() { path.join(STATE_FILE) } else { path.to_path_buf() };
-    let bytes = std::fs::read(&file).map_err(|e| {
-        Error::Input(InputError::new(&file, "", None, format!("cannot read the partial run's state: {e}")))
-    })?;
+    let bad = |m: String| Error::Input(InputError::new(&file, "", None, m));
+    // A regular file, read to its length only: a device or a pipe must not fill the memory.
+    let meta = std::fs::metadata(&file).map_err(|e| bad(format!("cannot read the partial run's state: {e}")))?;
+    if !meta.is_file() {
+        return Err(bad("cannot read the partial run's state: it is not a regular file".into()));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(
+            std::fs::File::open(&file).map_err(|e| bad(format!("cannot read the partial run's state: {e}")))?,
+            meta.len(),
+        ),
+        &mut bytes,
+    )
+    .map_err(|e| bad(format!("cannot read the partial run's state: {e}")))?;
     part_from_bytes(&bytes, &file)
 }
 

@@ -33,12 +33,12 @@ pub struct Simulation {
     pub integrator: Integrator,
 }
 
-/// GGX α below which a surface is smooth (a delta lobe): the lobe is then narrower than a
-/// direction's f32 resolution, and microfacet sampling loses its precision.
 /// Most photons one run may trace (2^48): `run` keeps every total as an exact sum with room for
 /// 2^35 batches, and this leaves room to merge two full runs.
 pub const MAX_PHOTONS: u64 = 1 << 48;
 
+/// GGX α below which a surface is smooth (a delta lobe): the lobe is then narrower than a
+/// direction's f32 resolution, and microfacet sampling loses its precision.
 pub const SMOOTH_ROUGHNESS: f64 = 1e-4;
 
 /// GGX roughness: α along the surface tangent (`u`, see `Geometry::tangent`) and across it in

@@ -73,6 +73,8 @@ struct Body<'a> {
     format: Format,
     bytes: &'a [u8],
     at: usize,
+    /// The body's first byte in the file, so offsets in messages are the file's.
+    start: usize,
     /// ASCII: the current line's number in the file, the header's lines before the body's, and
     /// the line's remaining words.
     line: usize,
@@ -96,7 +98,10 @@ impl Body<'_> {
         }
         let n = s.bytes();
         let Some(raw) = self.bytes.get(self.at..self.at + n) else {
-            return Err((None, format!("the file ends at byte {} before its elements do", self.bytes.len())));
+            return Err((
+                None,
+                format!("the file ends at byte {} before its elements do", self.start + self.bytes.len()),
+            ));
         };
         let mut b = [0u8; 8];
         b[..n].copy_from_slice(raw);
@@ -120,7 +125,7 @@ impl Body<'_> {
     fn place(&self, width: usize) -> String {
         match self.format {
             Format::Ascii => format!("line {}", self.line),
-            _ => format!("byte {}", self.at - width),
+            _ => format!("byte {}", self.start + self.at - width),
         }
     }
 }
@@ -197,6 +202,10 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
     if elements.iter().any(|e| e.count > left) {
         return Err(at_line(header_lines, format!("an element count exceeds the file's {left} body bytes")));
     }
+    // Items without properties take no bytes: their count would bound nothing.
+    if let Some(e) = elements.iter().find(|e| e.count > 0 && e.properties.is_empty()) {
+        return Err(at_line(header_lines, format!("the element `{}` has items but no properties", e.name)));
+    }
     let body_text = if format == Format::Ascii {
         String::from_utf8_lossy(&bytes[body_start..]).into_owned()
     } else {
@@ -212,6 +221,7 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
         format,
         bytes: &bytes[body_start..],
         at: 0,
+        start: body_start,
         line: header_lines,
         line_offset: header_lines,
         lines: body_text.lines().enumerate().peekable(),
@@ -271,7 +281,15 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                 }
                 verts.push(p);
                 if let Some((u, v)) = uv {
-                    texcoords.push(DVec2::new(values[u], values[v]));
+                    let t = DVec2::new(values[u], values[v]);
+                    if !t.is_finite() {
+                        return Err(at_byte(format!(
+                            "vertex {} (at {}) has texture coordinates that are not finite",
+                            item + 1,
+                            body.place(0)
+                        )));
+                    }
+                    texcoords.push(t);
                 }
             } else if is_face {
                 if corners.len() < 3 {

@@ -26,7 +26,9 @@ pub fn read_stl(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
         .map(|n| HEADER_BYTES + 4 + TRIANGLE_BYTES * n);
     let (tris, skipped) = if binary_size == Some(bytes.len()) {
         read_binary(path, &bytes)?
-    } else if bytes.trim_ascii_start().starts_with(b"solid") {
+    } else if bytes.trim_ascii_start().starts_with(b"solid") && !bytes.contains(&0) {
+        // (A NUL is no ASCII STL's: a "solid"-headed binary file of the wrong size is reported
+        // as binary below.)
         read_ascii(path, &String::from_utf8_lossy(&bytes))?
     } else {
         let m = match binary_size {
