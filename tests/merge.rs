@@ -62,11 +62,14 @@ fn assert_same_outputs(a: &Path, b: &Path, what: &str) {
 fn parts_merged_in_any_order_write_the_single_runs_bytes() {
     let dir = common::temp_dir("merge-order");
     // (scene, extra flags, parts as batch ranges, the order they are given to merge): the light
-    // tracer's film, maps with stratified batches (their between-batch errors), BDPT's camera part.
-    let cases: [(&str, &[&str], &[(u64, u64)], &[usize]); 3] = [
+    // tracer's film, maps with stratified batches (their between-batch errors), the camera
+    // integrators' film part.
+    let cases: [(&str, &[&str], &[(u64, u64)], &[usize]); 4] = [
         ("cornell_box.toml", &[], &[(0, 2), (2, 3), (3, 5)], &[1, 2, 0]),
         ("office.toml", &["--no-image", "--stratified"], &[(0, 1), (1, 4)], &[1, 0]),
         ("glass.toml", &["--integrator", "bdpt", "--seed", "4"], &[(0, 1), (1, 2)], &[1, 0]),
+        // A film of fewer pixels (128 × 96) than a batch's samples: pixels take several a batch.
+        ("led_phosphor.toml", &["--integrator", "path"], &[(0, 1), (1, 3)], &[1, 0]),
     ];
     for (name, flags, parts, order) in cases {
         let s = scene(name);

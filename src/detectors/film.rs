@@ -372,11 +372,34 @@ impl Film {
         if !b.samples.is_empty() {
             let pixels = self.width * self.height;
             let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
-            for (i, v) in b.samples.iter().enumerate() {
-                let p = ((b.first_sample + i as u64) % pixels as u64) as usize;
+            let value = |v: &[f32; 3]| {
                 let (x, y, z) = (v[0] as f64, v[1] as f64, v[2] as f64);
-                cam.sums[p].add([x, y, z, y * y]);
-                cam.count[p] += 1;
+                [x, y, z, y * y]
+            };
+            let pixel = |i: usize| ((b.first_sample + i as u64) % pixels as u64) as usize;
+            if b.samples.len() <= pixels {
+                // Each pixel has at most one sample in the batch: one exact addition each.
+                for (i, v) in b.samples.iter().enumerate() {
+                    cam.sums[pixel(i)].add(value(v));
+                    cam.count[pixel(i)] += 1;
+                }
+            } else {
+                // A film smaller than the batch: each pixel's samples summed in sample order
+                // first, so a sum still takes one value a batch (`exact::MAX_VALUES`).
+                let mut batch = vec![([0.0f64; 4], 0u32); pixels];
+                for (i, v) in b.samples.iter().enumerate() {
+                    let (acc, n) = &mut batch[pixel(i)];
+                    for (a, x) in acc.iter_mut().zip(value(v)) {
+                        *a += x;
+                    }
+                    *n += 1;
+                }
+                for (p, (acc, n)) in batch.into_iter().enumerate() {
+                    if n > 0 {
+                        cam.sums[p].add(acc);
+                        cam.count[p] += n;
+                    }
+                }
             }
         }
         let owned;
