@@ -9,8 +9,8 @@ mod load;
 pub mod map;
 mod obj;
 mod ply;
-mod stl;
 pub(crate) mod shapes;
+mod stl;
 pub mod volume;
 
 use std::path::PathBuf;

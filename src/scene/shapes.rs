@@ -393,9 +393,12 @@ fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTria
     match ext.as_deref() {
         Some("stl") => super::stl::read_stl(file, warnings),
         Some("ply") => super::ply::read_ply(file, warnings),
-        Some(e @ ("gltf" | "glb")) => {
-            Err(InputError::new(file, "", None, format!(".{e} meshes are not read yet: give the mesh as OBJ, STL or PLY")))
-        }
+        Some(e @ ("gltf" | "glb")) => Err(InputError::new(
+            file,
+            "",
+            None,
+            format!(".{e} meshes are not read yet: give the mesh as OBJ, STL or PLY"),
+        )),
         _ => obj::read_obj(file, warnings),
     }
 }
