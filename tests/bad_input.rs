@@ -1459,3 +1459,71 @@ fn bad_volume_detectors() {
     );
     expect_bad("volume-names", &two, &[], &["would both write volume_a_b.npy"]);
 }
+
+#[test]
+fn bad_work_planes() {
+    const SQUARE: &str = "corners = [[0, 0.5, 0], [1, 0.5, 0], [1, 0.5, 1], [0, 0.5, 1]]";
+    // Each: the plane's body, the line's text, the key path, the message.
+    let cases = [
+        (
+            "corners = [[0, 0.5, 0], [1, 0.5, 0], [1, 0.5, 1]]\nresolution = [2, 2]",
+            "[[0, 0.5, 0]",
+            "detectors[0].corners",
+            "expected four corners",
+        ),
+        (
+            "corners = [[0, 0.5, 0], [1, 0.5, 0], [1.5, 0.5, 1], [0, 0.5, 1]]\nresolution = [2, 2]",
+            "[[0, 0.5, 0]",
+            "detectors[0].corners",
+            "must form a parallelogram",
+        ),
+        (
+            "corners = [[0, 0.5, 0], [1, 0.5, 0], [2, 0.5, 0], [1, 0.5, 0]]\nresolution = [2, 2]",
+            "[[0, 0.5, 0]",
+            "detectors[0].corners",
+            "span no area",
+        ),
+        (
+            "corners = [[0, 0.5, 0], [1, 0.5, 0], [1, 0.5, 1], [0, 0.5, 2e16]]\nresolution = [2, 2]",
+            "[[0, 0.5, 0]",
+            "detectors[0].corners",
+            "must lie within",
+        ),
+        (
+            "corners = [[0, 0.5, 0], [1, 0.5, 0], [1, 0.5, 1], [0, 0.5, \"x\"]]\nresolution = [2, 2]",
+            "[[0, 0.5, 0]",
+            "detectors[0].corners[3][2]",
+            "",
+        ),
+        (&format!("{SQUARE}\nresolution = [0, 4]"), "resolution", "detectors[0].resolution", "expected [nu, nv]"),
+        (&format!("{SQUARE}\nresolution = [2, 2, 2]"), "resolution", "detectors[0].resolution", "expected [nu, nv]"),
+        ("resolution = [2, 2]", "[[detectors]]", "detectors[0].corners", "missing required key `corners`"),
+        (
+            &format!("{SQUARE}\nresolution = [2, 2]\nnadir = [0, 0, 1]"),
+            "nadir",
+            "detectors[0].nadir",
+            "unknown key `nadir`",
+        ),
+    ];
+    for (k, (body, needle, key, message)) in cases.into_iter().enumerate() {
+        let toml = format!("{BASE}\n[[detectors]]\ntype = \"plane\"\n{body}\n");
+        let line = line_of(&toml, needle);
+        expect_bad(&format!("plane-{k}"), &toml, &[], &[&at(line, key), message]);
+    }
+    let plane =
+        |name: &str| format!("\n[[detectors]]\ntype = \"plane\"\nname = \"{name}\"\n{SQUARE}\nresolution = [2, 2]\n");
+    let two = format!("{BASE}{}{}", plane("a b"), plane("a_b"));
+    expect_bad("plane-names", &two, &[], &["work plane \"a b\" and work plane \"a_b\" would both write maps/a_b.exr"]);
+    let mapped = edit(
+        BASE,
+        "shape = { type = \"quad\", corners = [[0, 0, 0]",
+        "map = { resolution = [2, 2] }\nshape = { type = \"quad\", corners = [[0, 0, 0]",
+    );
+    let clash = format!("{mapped}{}", plane("floor"));
+    expect_bad(
+        "plane-surface-name",
+        &clash,
+        &[],
+        &["surface \"floor\" and work plane \"floor\" would both write maps/floor.exr"],
+    );
+}

@@ -978,13 +978,24 @@ impl PyRunResult {
         }
     }
 
+    /// flux.json's work-plane rows (E_min, E_mean, E_max and U0 in illuminance_lx and
+    /// irradiance_w_m2, each with its stderr); [] without work planes.
+    #[getter]
+    fn planes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match item(py, &self.flux_json, "planes") {
+            Ok(m) => Ok(m),
+            Err(_) => Ok(PyList::empty(py).into_any()),
+        }
+    }
+
     /// The energy ledger: emitted_w = absorbed_w + escaped_w + truncated_w.
     #[getter]
     fn ledger<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         item(py, &self.flux_json, "ledger")
     }
 
-    /// The whole of flux.json as a dict (photons, emitted_w, emitted_lm, surfaces, media, ledger).
+    /// The whole of flux.json as a dict (photons, emitted_w, emitted_lm, surfaces, media, maps,
+    /// planes, ledger).
     #[getter]
     fn flux_json<'py>(&self, py: Python<'py>) -> Bound<'py, PyAny> {
         self.flux_json.bind(py).clone()

@@ -5,7 +5,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 
 use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
@@ -15,6 +15,7 @@ use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
 use crate::sampling::Sampler;
 use crate::scene::map::SurfaceMap;
+use crate::scene::plane::WorkPlane;
 use crate::scene::{Material, Scene};
 use crate::spectrum::photometry;
 
@@ -240,7 +241,11 @@ impl Kernel<'_> {
         // Irradiance maps: one branch per arrival, not taken in scenes without maps.
         let maps: Vec<Option<&SurfaceMap>> = scene.surfaces.iter().map(|s| s.map.as_ref()).collect();
         let has_maps = maps.iter().any(|m| m.is_some());
-        let mut texels = scores(if has_maps { scene.map_texels() } else { 0 });
+        // Work planes: every straight stretch of a path is tested against them.
+        let planes = &scene.planes;
+        let has_planes = !planes.is_empty();
+        let has_texels = has_maps || has_planes;
+        let mut texels = scores(if has_texels { scene.map_texels() } else { 0 });
         // Far-field detectors and surface spectra, likewise off unless asked for.
         let detectors = &scene.detectors;
         let mut farfield = scores(scene.farfield_bins());
@@ -478,6 +483,11 @@ impl Kernel<'_> {
                                 dir = new_dir;
                                 break 'collision true;
                             };
+                            if has_planes {
+                                let flight = (t - seg_start).max(0.0);
+                                let (o, d) = (seg_origin.as_dvec3(), seg_dir.as_dvec3());
+                                cross_planes(planes, o, d, flight, w_in, 0.0, &mut texels);
+                            }
                             if has_volumes {
                                 // The free flight's track, and what this collision deposited.
                                 let p = at.as_dvec3();
@@ -502,6 +512,10 @@ impl Kernel<'_> {
                         let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
                         track(volumes, o, d, f64::INFINITY, weight, 0.0, &mut volume_track, &mut volume_absorbed);
                     }
+                    if has_planes {
+                        let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+                        cross_planes(planes, o, d, f64::INFINITY, weight, 0.0, &mut texels);
+                    }
                     out.escaped += weight;
                     for d in detectors {
                         farfield.add(d.bin_of(dir) as u32, weight);
@@ -522,13 +536,19 @@ impl Kernel<'_> {
                 if volume.is_none() {
                     absorbing = medium.and_then(|m| media::absorption(materials[m as usize]).map(|a| (a, m)));
                 }
-                if has_volumes {
+                if has_volumes || has_planes {
                     // The segment to the surface; across an absorbing medium its weight decays as
-                    // w·e^{−α s} from the surface it left (the head start already behind it).
+                    // w·e^{−α s} from the surface it left (the head start already behind it): the
+                    // expected weight at each point, whichever estimator decides below.
                     let alpha = absorbing.map_or(0.0, |(a, _)| a.eval(lambda));
                     let w0 = if alpha > 0.0 { weight * (-alpha * head_start).exp() } else { weight };
                     let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
-                    track(volumes, o, d, hit.t as f64, w0, alpha, &mut volume_track, &mut volume_absorbed);
+                    if has_volumes {
+                        track(volumes, o, d, hit.t as f64, w0, alpha, &mut volume_track, &mut volume_absorbed);
+                    }
+                    if has_planes {
+                        cross_planes(planes, o, d, hit.t as f64, w0, alpha, &mut texels);
+                    }
                 }
                 if let Some((alpha, row)) = absorbing {
                     let t = hit.t as f64 + head_start;
@@ -680,7 +700,7 @@ impl Kernel<'_> {
             out.scatterings_sq += (scatterings as u64).pow(2);
             incident.flush_scaled(&mut out.incident.moments, Some((&mut out.incident_lm.moments, lm_per_w)));
             absorbed.flush_scaled(&mut out.absorbed.moments, Some((&mut out.absorbed_lm.moments, lm_per_w)));
-            if has_maps {
+            if has_texels {
                 texels.flush_scaled(&mut out.texels.moments, Some((&mut out.texels_lm.moments, lm_per_w)));
             }
             if !detectors.is_empty() {
@@ -700,6 +720,27 @@ impl Kernel<'_> {
         }
         out.photons = count;
         out
+    }
+}
+
+/// The work planes that the stretch o + s·ω, s ≤ s_max, crosses toward their front: the weight
+/// there (w·e^{−α s} across an absorbing medium) goes to the texel and to the plane's whole.
+#[inline]
+fn cross_planes(
+    planes: &[WorkPlane],
+    o: DVec3,
+    w: DVec3,
+    s_max: f64,
+    weight: f64,
+    alpha: f64,
+    texels: &mut HistoryScores,
+) {
+    for plane in planes {
+        if let Some((slot, s)) = plane.crossing(o, w, s_max) {
+            let x = if alpha > 0.0 { weight * (-alpha * s).exp() } else { weight };
+            texels.add(slot as u32, x);
+            texels.add(plane.total_slot() as u32, x);
+        }
     }
 }
 

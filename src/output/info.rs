@@ -116,6 +116,11 @@ pub fn describe(scene: &Scene) -> String {
     for d in &scene.detectors {
         s.push_str(&format!("detector: farfield {} {}×{} (gamma × C)\n", d.name, d.resolution[0], d.resolution[1]));
     }
+    for p in &scene.planes {
+        let [nu, nv] = p.resolution;
+        let area = p.area_m2() / (scene.unit_m * scene.unit_m);
+        s.push_str(&format!("detector: work plane {} {nu}×{nv} texels over {area:.6} square units\n", p.name));
+    }
     s
 }
 
@@ -229,6 +234,11 @@ pub fn scene_info(scene: &Scene) -> serde_json::Value {
         .iter()
         .map(|d| json!({"name": d.name, "type": "farfield", "resolution": d.resolution}))
         .collect();
+    let planes: Vec<_> = scene
+        .planes
+        .iter()
+        .map(|p| json!({"name": p.name, "resolution": p.resolution, "area_m2": p.area_m2()}))
+        .collect();
     let volumes: Vec<_> = scene.volumes.iter().map(|v| json!({"name": v.name, "resolution": v.resolution})).collect();
     json!({
         "scene": scene.path.display().to_string(),
@@ -245,5 +255,6 @@ pub fn scene_info(scene: &Scene) -> serde_json::Value {
         "spectra": spectra,
         "detectors": detectors,
         "volumes": volumes,
+        "planes": planes,
     })
 }

@@ -1,10 +1,22 @@
-//! Irradiance map outputs: per-texel estimates of a finished run, and their EXR and PNG files.
+//! Irradiance map outputs: per-texel estimates of a finished run (surface maps and work planes),
+//! their uniformity figures, and their EXR and PNG files.
 
 use crate::scene::map::file_name;
 
-/// One surface's map as estimates per texel, row-major with j (v) increasing.
+/// What a map lies on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MapKind {
+    Surface,
+    /// A work plane (`[[detectors]] type = "plane"`), which photons pass through.
+    Plane,
+}
+
+/// One map as estimates per texel, row-major with j (v) increasing.
 pub struct MapEstimate {
+    /// The surface's or work plane's name (the file stem of maps/<name>.exr).
     pub surface: String,
+    pub kind: MapKind,
     pub resolution: [usize; 2],
     /// Extent in metres of a planar map; None for a map over texture coordinates.
     pub size_m: Option<[f64; 2]>,
@@ -12,6 +24,41 @@ pub struct MapEstimate {
     /// (value, standard error) per texel: incident W and lm.
     pub flux_w: Vec<(f64, f64)>,
     pub flux_lm: Vec<(f64, f64)>,
+    /// The whole map's area and its incident W and lm with their standard errors: the surface's
+    /// own tally, or a work plane's whole-plane slot.
+    pub area_m2: f64,
+    pub total_w: (f64, f64),
+    pub total_lm: (f64, f64),
+}
+
+/// Minimum, mean and maximum of a map and the uniformity U₀ = E_min/E_mean (EN 12464-1), each
+/// with its standard error.
+#[derive(serde::Serialize, Clone, Copy, Debug, PartialEq)]
+pub struct Uniformity {
+    pub min: f64,
+    pub min_stderr: f64,
+    pub mean: f64,
+    pub mean_stderr: f64,
+    pub max: f64,
+    pub max_stderr: f64,
+    pub u0: f64,
+    pub u0_stderr: f64,
+}
+
+/// A map's row in flux.json (`maps` for surfaces, `planes` for work planes).
+#[derive(serde::Serialize, Clone, Debug)]
+pub struct MapRow {
+    pub name: String,
+    pub area_m2: f64,
+    pub resolution: [usize; 2],
+    /// Texels the figures are taken over: those at least half covered by the surface.
+    pub texels_counted: usize,
+    pub incident_w: f64,
+    pub incident_w_stderr: f64,
+    pub incident_lm: f64,
+    pub incident_lm_stderr: f64,
+    pub illuminance_lx: Uniformity,
+    pub irradiance_w_m2: Uniformity,
 }
 
 impl MapEstimate {
@@ -30,28 +77,98 @@ impl MapEstimate {
     pub fn illuminance_lx(&self) -> Vec<(f64, f64)> {
         self.per_area(&self.flux_lm)
     }
+
+    /// The texels the uniformity figures count: at least half as large as the largest (a texel
+    /// the surface barely reaches into, along a disk's rim, holds few photons and its noise would
+    /// be read as the minimum). Every texel of a work plane counts.
+    fn counted(&self) -> Vec<usize> {
+        let full = self.texel_area_m2.iter().copied().fold(0.0, f64::max);
+        (0..self.texel_area_m2.len()).filter(|&k| full > 0.0 && self.texel_area_m2[k] >= 0.5 * full).collect()
+    }
+
+    /// E_min, E_mean, E_max and U₀ of per-texel values `e` (W/m² or lx), the mean from the whole
+    /// map's flux `total` over its area. E_min's and E_max's standard errors are those of the
+    /// texels holding them (a minimum over noisy texels is biased low by about the texels' noise:
+    /// run until that is small against the spread). U₀'s follows to first order,
+    /// σ_U/U = √((σ_min/E_min)² + (σ_mean/E_mean)²), as if the two were independent (they are
+    /// correlated positively, so this errs large).
+    fn uniformity(&self, e: &[(f64, f64)], total: (f64, f64)) -> Uniformity {
+        let counted = self.counted();
+        let pick = |better: fn(f64, f64) -> bool| {
+            counted.iter().map(|&k| e[k]).reduce(|a, b| if better(b.0, a.0) { b } else { a }).unwrap_or((0.0, 0.0))
+        };
+        let (min, min_stderr) = pick(|b, a| b < a);
+        let (max, max_stderr) = pick(|b, a| b > a);
+        let per_m2 = if self.area_m2 > 0.0 { 1.0 / self.area_m2 } else { 0.0 };
+        let (mean, mean_stderr) = (total.0 * per_m2, total.1 * per_m2);
+        let (u0, u0_stderr) = if mean > 0.0 && min > 0.0 {
+            let u = min / mean;
+            (u, u * ((min_stderr / min).powi(2) + (mean_stderr / mean).powi(2)).sqrt())
+        } else if mean > 0.0 {
+            // E_min = 0: U₀ = 0, and its error is that of a zero minimum over the mean.
+            (0.0, min_stderr / mean)
+        } else {
+            (0.0, 0.0)
+        };
+        Uniformity { min, min_stderr, mean, mean_stderr, max, max_stderr, u0, u0_stderr }
+    }
+
+    pub fn row(&self) -> MapRow {
+        MapRow {
+            name: self.surface.clone(),
+            area_m2: self.area_m2,
+            resolution: self.resolution,
+            texels_counted: self.counted().len(),
+            incident_w: self.total_w.0,
+            incident_w_stderr: self.total_w.1,
+            incident_lm: self.total_lm.0,
+            incident_lm_stderr: self.total_lm.1,
+            illuminance_lx: self.uniformity(&self.illuminance_lx(), self.total_lm),
+            irradiance_w_m2: self.uniformity(&self.irradiance_w_m2(), self.total_w),
+        }
+    }
 }
 
-/// The maps of every mapped surface of a finished run.
+/// The maps of a finished run: every mapped surface's, then every work plane's.
 pub fn estimates(scene: &crate::scene::Scene, r: &crate::run::RunResult) -> Vec<MapEstimate> {
     let t = &r.tallies;
     let model = r.transport.error_model();
-    scene
-        .surfaces
-        .iter()
-        .filter_map(|s| s.map.as_ref().map(|m| (s, m)))
-        .map(|(s, m)| {
-            let range = m.offset..m.offset + m.texels();
+    let texel =
+        |k: usize| (t.estimate(&t.texels, k, r.emitted_w, model), t.estimate(&t.texels_lm, k, r.emitted_w, model));
+    let surfaces =
+        scene.surfaces.iter().enumerate().filter_map(|(i, s)| s.map.as_ref().map(|m| (i, s, m))).map(|(i, s, m)| {
+            let (flux_w, flux_lm) = (m.offset..m.offset + m.texels()).map(texel).unzip();
             MapEstimate {
                 surface: s.name.clone(),
+                kind: MapKind::Surface,
                 resolution: m.resolution,
                 size_m: m.size_m,
                 texel_area_m2: crate::detectors::maps::texel_areas(m),
-                flux_w: range.clone().map(|k| t.estimate(&t.texels, k, r.emitted_w, model)).collect(),
-                flux_lm: range.map(|k| t.estimate(&t.texels_lm, k, r.emitted_w, model)).collect(),
+                flux_w,
+                flux_lm,
+                area_m2: s.area_m2,
+                total_w: r.incident(i),
+                total_lm: r.incident_lm(i),
             }
-        })
-        .collect()
+        });
+    let planes = scene.planes.iter().map(|p| {
+        let [nu, nv] = p.resolution;
+        let (flux_w, flux_lm) = (p.offset..p.offset + nu * nv).map(texel).unzip();
+        let (total_w, total_lm) = texel(p.total_slot());
+        MapEstimate {
+            surface: p.name.clone(),
+            kind: MapKind::Plane,
+            resolution: p.resolution,
+            size_m: Some(p.size_m()),
+            texel_area_m2: vec![p.area_m2() / (nu * nv) as f64; nu * nv],
+            flux_w,
+            flux_lm,
+            area_m2: p.area_m2(),
+            total_w,
+            total_lm,
+        }
+    });
+    surfaces.chain(planes).collect()
 }
 
 /// maps/<surface>.exr: irradiance (W/m²), illuminance (lx) and their standard errors, f32, one
@@ -121,9 +238,22 @@ pub fn write_png(
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let root = root
-            .titled(&format!("{scene_name}: illuminance on \"{}\" (lx)", m.surface), ("sans-serif", 22))
-            .map_err(|e| err(&e))?;
+        let on = match m.kind {
+            MapKind::Surface => format!("\"{}\"", m.surface),
+            MapKind::Plane => format!("work plane \"{}\"", m.surface),
+        };
+        let root =
+            root.titled(&format!("{scene_name}: illuminance on {on} (lx)"), ("sans-serif", 22)).map_err(|e| err(&e))?;
+        let u = m.row().illuminance_lx;
+        let figures = format!(
+            "E_min {} lx, E_mean {} lx, E_max {} lx, U0 = E_min/E_mean {:.3} ± {:.3}",
+            lux_label(u.min),
+            lux_label(u.mean),
+            lux_label(u.max),
+            u.u0,
+            u.u0_stderr
+        );
+        let root = root.titled(&figures, ("sans-serif", 16)).map_err(|e| err(&e))?;
         let (left, right) = root.split_horizontally(w - 190);
         let ev = m.illuminance_lx();
         // The scale spans the texels on the surface, lowest to highest: from 0 it would hide a

@@ -4,6 +4,7 @@
 pub mod converge;
 pub mod farfield;
 pub mod info;
+pub mod luminaire;
 pub mod maps;
 pub mod state;
 pub mod volume;
@@ -91,6 +92,11 @@ pub struct Flux {
     /// `[media]`, after the surfaces in the absorbed tallies (absent without media).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub media: Vec<MediumRow>,
+    /// Surface maps' and work planes' minimum, mean, maximum and uniformity (absent without).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub maps: Vec<maps::MapRow>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub planes: Vec<maps::MapRow>,
     pub ledger: Ledger,
 }
 
@@ -149,6 +155,11 @@ pub struct RunInfo {
 }
 
 pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
+    flux_with_maps(scene, r, &maps::estimates(scene, r))
+}
+
+/// flux.json's numbers, given the run's maps (`maps::estimates`).
+pub fn flux_with_maps(scene: &Scene, r: &RunResult, map_estimates: &[maps::MapEstimate]) -> Flux {
     let t = &r.tallies;
     let surfaces = scene
         .surfaces
@@ -198,7 +209,17 @@ pub fn flux(scene: &Scene, r: &RunResult) -> Flux {
         })
         .collect();
     let emitted_lm = scene.lights.iter().map(|l| l.power_w * l.lm_per_w).sum();
-    Flux { photons: t.photons, emitted_w: r.emitted_w, emitted_lm, surfaces, media, ledger: t.ledger(r.emitted_w) }
+    let rows = |kind: maps::MapKind| map_estimates.iter().filter(|m| m.kind == kind).map(|m| m.row()).collect();
+    Flux {
+        photons: t.photons,
+        emitted_w: r.emitted_w,
+        emitted_lm,
+        surfaces,
+        media,
+        maps: rows(maps::MapKind::Surface),
+        planes: rows(maps::MapKind::Plane),
+        ledger: t.ledger(r.emitted_w),
+    }
 }
 
 pub fn run_info(scene: &Scene, r: &RunResult, flux: &Flux) -> RunInfo {
@@ -319,6 +340,15 @@ pub fn summary_table(f: &Flux, info: &RunInfo) -> String {
         ));
         if let (Some(w), Some(se)) = (m.reemitted_w, m.reemitted_w_stderr) {
             s.push_str(&format!("{:<width$}  re-emitted {w:.6} ± {se:.3e} W by its luminophore\n", ""));
+        }
+    }
+    for (what, rows) in [("map", &f.maps), ("work plane", &f.planes)] {
+        for m in rows {
+            let u = &m.illuminance_lx;
+            s.push_str(&format!(
+                "{what} {}: E_min {:.5e} ± {:.2e}  E_mean {:.5e} ± {:.2e}  E_max {:.5e} ± {:.2e} lx  U0 {:.4} ± {:.4}\n",
+                m.name, u.min, u.min_stderr, u.mean, u.mean_stderr, u.max, u.max_stderr, u.u0, u.u0_stderr
+            ));
         }
     }
     let l = &f.ledger;
@@ -472,8 +502,11 @@ pub fn run_file_names(scene: &Scene, image: bool, partial: bool) -> Vec<String> 
             names.push(spectrum_file_name(&s.name));
         }
     }
+    for p in &scene.planes {
+        names.extend(["exr", "png"].map(|ext| format!("maps/{}", crate::scene::map::file_name(&p.name, ext))));
+    }
     for d in &scene.detectors {
-        names.extend(["csv", "png"].map(|ext| crate::output::farfield::file_name(&d.name, ext)));
+        names.extend(["csv", "png", "ies", "ldt"].map(|ext| crate::output::farfield::file_name(&d.name, ext)));
     }
     for v in &scene.volumes {
         names.extend(["npy", "png"].map(|ext| crate::output::volume::file_name(&v.name, ext)));
@@ -727,7 +760,8 @@ pub struct RunEstimates<'a> {
 /// The estimates of a finished run. A scene whose magnitudes leave no finite answer is an error
 /// here, so a run either reports finite results or nothing.
 pub fn estimates<'a>(scene: &'a Scene, r: &RunResult) -> Result<RunEstimates<'a>, Error> {
-    let flux = flux(scene, r);
+    let maps = crate::output::maps::estimates(scene, r);
+    let flux = flux_with_maps(scene, r, &maps);
     let mut info = run_info(scene, r, &flux);
     let mut warnings = Vec::new();
     let too_large = |what: &str, limit: &str| {
@@ -742,7 +776,6 @@ pub fn estimates<'a>(scene: &'a Scene, r: &RunResult) -> Result<RunEstimates<'a>
         return Err(too_large("the tallies", ""));
     }
     let image = r.film.as_ref().map(|f| f.image(r.emitted_w));
-    let maps = crate::output::maps::estimates(scene, r);
     let f32_limit = " in 32-bit floats (at most 3.4e38)";
     if let (Some(film), Some(image)) = (&r.film, &image) {
         let finite = |v: &f32| v.is_finite();
@@ -797,9 +830,12 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
             wrote(crate::output::maps::write_png(&maps_dir, m, &scene.stem())?);
         }
     }
+    let label = luminaire::RunLabel { scene, photons: r.tallies.photons, seed: r.seed };
     for e in &farfields {
         wrote(crate::output::farfield::write_csv(dir, e)?);
         wrote(crate::output::farfield::write_png(dir, e, &scene.stem())?);
+        wrote(luminaire::write_ies(dir, e, &label)?);
+        wrote(luminaire::write_ldt(dir, e, &label)?);
     }
     for v in &volumes {
         wrote(crate::output::volume::write_npy(dir, v)?);

@@ -37,6 +37,8 @@ pub struct IesProfile {
     pub rated_lm: Option<f64>,
     /// ∫ I dΩ of the (interpolated) table: the luminaire's flux, lm.
     pub total_lm: f64,
+    /// The luminaire's electrical input power as the file gives it (W), when it gives one (> 0).
+    pub input_w: Option<f64>,
     /// Sampling grid: sub-cell edges as γ and C in radians, and the same edges in degrees (the
     /// table's own grid, so that edges evaluate exactly on tabulated angles).
     sub_gamma: Vec<f64>,
@@ -107,7 +109,7 @@ impl IesProfile {
         }
         let (ballast, bl) = next("the ballast factor")?;
         let (ballast_lamp, _) = next("the ballast-lamp photometric factor")?;
-        let _watts = next("the input watts")?;
+        let (watts, _) = next("the input watts")?;
         if photometric_type != 1.0 {
             return Err(err(ptl, format!("photometric type {photometric_type} is not supported: only type C (1)")));
         }
@@ -184,12 +186,26 @@ impl IesProfile {
         }
         let (c_deg, cd) = expand_symmetry(&h_deg, table).map_err(|m| err(hl, m))?;
         let rated_lm = (lumens_per_lamp > 0.0).then_some(lamps * lumens_per_lamp);
+        let input_w = (watts > 0.0).then_some(watts);
+        Self::from_table(gamma_deg, c_deg, cd, rated_lm, input_w).map_err(|m| err(gl, m))
+    }
+
+    /// A profile from a whole table: γ increasing within [0, 180], C increasing from 0 to 360
+    /// (or the single angle 0 of a rotationally symmetric table), `cd[c][g]` ≥ 0 in candela.
+    pub fn from_table(
+        gamma_deg: Vec<f64>,
+        c_deg: Vec<f64>,
+        cd: Vec<Vec<f64>>,
+        rated_lm: Option<f64>,
+        input_w: Option<f64>,
+    ) -> Result<Self, String> {
         let mut p = IesProfile {
             gamma_deg,
             c_deg,
             cd,
             rated_lm,
             total_lm: 0.0,
+            input_w,
             sub_gamma: vec![],
             sub_c: vec![],
             sub_gamma_deg: vec![],
@@ -198,7 +214,7 @@ impl IesProfile {
         };
         p.build_sampler();
         if !(p.total_lm > 0.0) {
-            return Err(err(gl, "the candela table emits no light".into()));
+            return Err("the candela table emits no light".into());
         }
         Ok(p)
     }
@@ -332,7 +348,7 @@ fn locate(a: &[f64], x: f64) -> (usize, f64) {
 /// The table over C in [0, 360] from the file's horizontal angles and symmetry (LM-63-2002 §5.9):
 /// one angle (0): the same in every plane; 0–90: symmetric in each quadrant; 0–180: symmetric about
 /// the C0–C180 plane; 90–270: symmetric about the C90–C270 plane; 0–360: as given.
-fn expand_symmetry(h: &[f64], table: Vec<Vec<f64>>) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
+pub(super) fn expand_symmetry(h: &[f64], table: Vec<Vec<f64>>) -> Result<(Vec<f64>, Vec<Vec<f64>>), String> {
     let (first, last) = (h[0], h[h.len() - 1]);
     // Each full-circle angle maps to an angle in the given range.
     let base: fn(f64) -> f64 = match (first, last) {

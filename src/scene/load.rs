@@ -294,7 +294,7 @@ impl<'s> Loader<'s> {
                     .to_string(),
             );
         }
-        let (detectors, volumes) = self.detectors(root, origin_m, unit_m)?;
+        let (detectors, volumes, planes) = self.detectors(root, origin_m, unit_m, &surfaces)?;
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
@@ -349,6 +349,7 @@ impl<'s> Loader<'s> {
             effects,
             detectors,
             volumes,
+            planes,
             warnings,
             reference,
             origin_m,
@@ -1862,19 +1863,29 @@ impl<'s> Loader<'s> {
     fn distribution(&self, n: Node<'s, '_>) -> R<(Distribution, Option<IesLight>)> {
         if n.is_table() {
             let t = n.table()?;
-            t.allow(&["cosine_power", "ies", "c0"])?;
-            if t.has("ies") {
-                if t.has("cosine_power") {
-                    return Err(t.err_at("cosine_power", "give either `ies` or `cosine_power`, not both"));
+            t.allow(&["cosine_power", "ies", "ldt", "c0"])?;
+            if let Some(key) = ["ies", "ldt"].into_iter().find(|k| t.has(k)) {
+                for other in ["cosine_power", "ldt"] {
+                    if other != key && t.has(other) {
+                        return Err(t.err_at(
+                            other,
+                            format!("give one of `ies`, `ldt` and `cosine_power`, not both `{key}` and `{other}`"),
+                        ));
+                    }
                 }
-                let rel = t.req_str("ies")?;
+                let rel = t.req_str(key)?;
                 let file = self.base_dir.join(rel);
-                let line = t.line_of_key("ies");
-                let profile = crate::scene::ies::IesProfile::read(&file).map_err(|mut e| {
+                let line = t.line_of_key(key);
+                let read = match key {
+                    "ies" => crate::scene::ies::IesProfile::read(&file),
+                    _ => crate::scene::ldt::read(&file),
+                };
+                let kind = if key == "ies" { "IES" } else { "EULUMDAT" };
+                let profile = read.map_err(|mut e| {
                     e.message = format!(
-                        "{} (IES file named by `{}` at {}:{line})",
+                        "{} ({kind} file named by `{}` at {}:{line})",
                         e.message,
-                        child_path(t.path, "ies"),
+                        child_path(t.path, key),
                         self.src.file.display()
                     );
                     e
@@ -1893,7 +1904,10 @@ impl<'s> Loader<'s> {
                 ));
             }
             if t.has("c0") {
-                return Err(t.err_at("c0", "`c0` orients an IES table: it needs `ies = \"file.ies\"`"));
+                return Err(t.err_at(
+                    "c0",
+                    "`c0` orients an intensity table: it needs `ies = \"file.ies\"` or `ldt = \"file.ldt\"`",
+                ));
             }
             let p = t.require("cosine_power", |n| {
                 let p = n.f64()?;
@@ -1911,7 +1925,7 @@ impl<'s> Loader<'s> {
             other => {
                 return Err(n.err(format!(
                     "unknown distribution \"{other}\"; known: \"lambertian\", \"isotropic\", \"collimated\", \
-                     {{ cosine_power = n }}, {{ ies = \"file.ies\" }}"
+                     {{ cosine_power = n }}, {{ ies = \"file.ies\" }}, {{ ldt = \"file.ldt\" }}"
                 )))
             }
         };
@@ -1919,16 +1933,23 @@ impl<'s> Loader<'s> {
     }
 
     /// `[[detectors]]`: far-field detectors, `type = "farfield"`, `resolution = [n_gamma, n_c]`,
-    /// optional `name`, `nadir` (default [0, 0, -1]) and `c0` (see `ies::Frame`).
+    /// optional `name`, `nadir` (default [0, 0, -1]) and `c0` (see `ies::Frame`); volume
+    /// detectors and work planes (`volume_detector`, `work_plane`).
     #[allow(clippy::type_complexity)]
     fn detectors(
         &self,
         root: Table<'s, '_>,
         origin_m: DVec3,
         unit_m: f64,
-    ) -> R<(Vec<crate::scene::farfield::FarField>, Vec<crate::scene::volume::VolumeGrid>)> {
+        surfaces: &[Surface],
+    ) -> R<(
+        Vec<crate::scene::farfield::FarField>,
+        Vec<crate::scene::volume::VolumeGrid>,
+        Vec<crate::scene::plane::WorkPlane>,
+    )> {
         let mut out: Vec<crate::scene::farfield::FarField> = Vec::new();
         let mut volumes: Vec<crate::scene::volume::VolumeGrid> = Vec::new();
+        let mut planes: Vec<crate::scene::plane::WorkPlane> = Vec::new();
         root.with("detectors", |n| {
             n.each(|item| {
                 let t = item.table()?;
@@ -1937,11 +1958,16 @@ impl<'s> Loader<'s> {
                     volumes.push(self.volume_detector(t, origin_m, unit_m, &volumes)?);
                     return Ok(());
                 }
+                if kind == "plane" {
+                    planes.push(self.work_plane(t, origin_m, unit_m, surfaces, &planes)?);
+                    return Ok(());
+                }
                 t.allow(&["type", "name", "resolution", "nadir", "c0"])?;
                 if kind != "farfield" {
-                    return Err(
-                        t.err_at("type", format!("unknown detector type \"{kind}\"; known: \"farfield\", \"volume\""))
-                    );
+                    return Err(t.err_at(
+                        "type",
+                        format!("unknown detector type \"{kind}\"; known: \"farfield\", \"plane\", \"volume\""),
+                    ));
                 }
                 let name = t.str("name")?.unwrap_or_else(|| format!("farfield{}", out.len()));
                 if out.iter().any(|d| d.name == name) {
@@ -1999,7 +2025,68 @@ impl<'s> Loader<'s> {
                 Ok(())
             })
         })?;
-        Ok((out, volumes))
+        Ok((out, volumes, planes))
+    }
+
+    /// `type = "plane"`: `name`, `corners = [a, b, c, d]` (the file's unit; a parallelogram,
+    /// c = b + d − a, its front the side (b − a) × (c − a) points to), `resolution = [nu, nv]`.
+    fn work_plane(
+        &self,
+        t: Table<'s, '_>,
+        origin_m: DVec3,
+        unit_m: f64,
+        surfaces: &[Surface],
+        earlier: &[crate::scene::plane::WorkPlane],
+    ) -> R<crate::scene::plane::WorkPlane> {
+        t.allow(&["type", "name", "corners", "resolution"])?;
+        let name = t.str("name")?.unwrap_or_else(|| format!("plane{}", earlier.len()));
+        let stem = crate::scene::map::file_stem(&name);
+        if stem.len() > MAX_NAME_BYTES {
+            return Err(t.err_at(
+                "name",
+                format!(
+                    "a name of {} bytes is too long: it names maps/<name>.exr; at most {MAX_NAME_BYTES}",
+                    name.len()
+                ),
+            ));
+        }
+        let mapped = surfaces.iter().filter(|s| s.map.is_some()).map(|s| ("surface", &s.name));
+        let named = earlier.iter().map(|p| ("work plane", &p.name)).chain(mapped);
+        if let Some((what, other)) = named.into_iter().find(|(_, n)| crate::scene::map::file_stem(n) == stem) {
+            return Err(t.err_at(
+                "name",
+                format!("{what} \"{other}\" and work plane \"{name}\" would both write maps/{stem}.exr: rename one"),
+            ));
+        }
+        let corners = t.require("corners", |n| {
+            let points = n.each(|p| Ok(DVec3::from(p.vec3()?) * unit_m))?;
+            let [a, b, c, d]: [DVec3; 4] =
+                points.try_into().map_err(|_| n.err("expected four corners [a, b, c, d]"))?;
+            if [a, b, c, d].iter().any(|p| !(p.abs().max_element() <= MAX_COORD_M)) {
+                return Err(n.err(format!("every corner must lie within {MAX_COORD_M:e} m of the origin")));
+            }
+            let (u, v) = (b - a, d - a);
+            let size = u.length().max(v.length());
+            if !(u.cross(v).length() > 1e-9 * size * size) {
+                return Err(n.err("the corners span no area (a, b and d lie on one line)"));
+            }
+            if !((c - (b + d - a)).length() <= 1e-6 * size) {
+                return Err(n.err(
+                    "the corners must form a parallelogram, c = b + d − a (a rectangle in order around its edge)",
+                ));
+            }
+            Ok([a - origin_m, b - origin_m, d - origin_m])
+        })?;
+        let resolution = t.require("resolution", |n| {
+            let r = n.each(|x| x.u64())?;
+            if r.len() != 2 || r.iter().any(|&k| !(1..=MAX_MAP_SIDE).contains(&k)) {
+                return Err(n.err(format!("expected [nu, nv], each between 1 and {MAX_MAP_SIDE} texels")));
+            }
+            Ok([r[0] as usize, r[1] as usize])
+        })?;
+        let offset = surfaces.iter().filter_map(|s| s.map.as_ref()).map(|m| m.texels()).sum::<usize>()
+            + earlier.iter().map(|p| p.slots()).sum::<usize>();
+        Ok(crate::scene::plane::WorkPlane::new(name, resolution, corners, offset))
     }
 
     /// `type = "volume"`: `name`, `min`, `max` (the file's unit), `resolution = [nx, ny, nz]`.

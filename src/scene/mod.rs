@@ -5,9 +5,11 @@ pub mod catalog;
 mod doc;
 pub mod farfield;
 pub mod ies;
+pub mod ldt;
 mod load;
 pub mod map;
 mod obj;
+pub mod plane;
 mod ply;
 pub(crate) mod shapes;
 mod stl;
@@ -411,6 +413,8 @@ pub struct Scene {
     pub detectors: Vec<farfield::FarField>,
     /// Volume detectors (`[[detectors]] type = "volume"`).
     pub volumes: Vec<volume::VolumeGrid>,
+    /// Work planes (`[[detectors]] type = "plane"`): their slots follow the surface maps' texels.
+    pub planes: Vec<plane::WorkPlane>,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.
@@ -480,8 +484,14 @@ impl Scene {
         self.surfaces.iter().filter_map(|s| s.spectrum_bins).map(|(n, _)| n).sum()
     }
 
-    /// Texels of all irradiance maps together (each map's `offset` indexes into them).
+    /// Texels of all irradiance maps together (each map's `offset` indexes into them), then
+    /// the work planes' slots.
     pub fn map_texels(&self) -> usize {
+        self.surface_map_texels() + self.planes.iter().map(|p| p.slots()).sum::<usize>()
+    }
+
+    /// Texels of the surfaces' irradiance maps alone.
+    pub fn surface_map_texels(&self) -> usize {
         self.surfaces.iter().filter_map(|s| s.map.as_ref()).map(|m| m.texels()).sum()
     }
 
