@@ -174,6 +174,12 @@ fn run_rank(
     let ready = (|| {
         let mut scene = photon::scene::load(scene_path)?;
         let chosen = apply_options(&mut scene, opts)?;
+        if let (true, Some(d)) = (ranks > 1, scene.ray_detectors.first()) {
+            return Err(Error::Usage(format!(
+                "ray-set detector \"{}\" records its rays in one whole run: run it without MPI (or with one rank)",
+                d.name
+            )));
+        }
         let out_dir = out.unwrap_or_else(|| Path::new("out").join(scene.stem()));
         let image = scene.camera.is_some() && scene.effects.camera;
         let staged = if rank == 0 {

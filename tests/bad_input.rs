@@ -1527,3 +1527,53 @@ fn bad_work_planes() {
         &["surface \"floor\" and work plane \"floor\" would both write maps/floor.exr"],
     );
 }
+
+#[test]
+fn bad_ray_set_detectors_and_lights() {
+    let body = |b: &str| format!("{BASE}\n[[detectors]]\ntype = \"rays\"\n{b}\n");
+    let cases = [
+        (
+            "surface = \"ceiling\"",
+            "surface =",
+            "detectors[0].surface",
+            "no surface is named \"ceiling\"; surfaces: floor",
+        ),
+        ("name = \"r\"", "[[detectors]]", "detectors[0].surface", "missing required key `surface`"),
+        ("surface = \"floor\"\nmax_rays = 0", "max_rays", "detectors[0].max_rays", "max_rays must be between 1 and"),
+        (
+            "surface = \"floor\"\nresolution = [2, 2]",
+            "resolution",
+            "detectors[0].resolution",
+            "unknown key `resolution`",
+        ),
+    ];
+    for (k, (b, needle, key, message)) in cases.into_iter().enumerate() {
+        let toml = body(b);
+        expect_bad(&format!("rays-{k}"), &toml, &[], &[&at(line_of(&toml, needle), key), message]);
+    }
+    let two = format!(
+        "{}\n[[detectors]]\ntype = \"rays\"\nname = \"b\"\nsurface = \"floor\"\n",
+        body("name = \"a\"\nsurface = \"floor\"")
+    );
+    expect_bad("rays-twice", &two, &[], &["ray-set detector \"a\" already records \"floor\""]);
+    let surface = edit(
+        BASE,
+        "shape = { type = \"quad\", corners = [[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 0, 0]] }",
+        "shape = { type = \"rays\", file = \"x.npy\" }",
+    );
+    expect_bad("rays-surface", &surface, &[], &["`rays` is for lights only"]);
+}
+
+#[test]
+fn a_ray_set_past_max_rays_stops_the_run_with_no_output() {
+    let toml = format!("{BASE}\n[[detectors]]\ntype = \"rays\"\nsurface = \"floor\"\nmax_rays = 10\n");
+    let (dir, out) = photon("rays-cap", Some(&toml), &[], RUN);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("recorded more than its max_rays = 10 arrivals"), "{stderr}");
+    assert!(!dir.join("out").exists());
+    let partial: Vec<&str> = ["run", "{scene}", "--out", "{out}", "--batches", "0..1", "--quiet"].to_vec();
+    let (_, out) = photon("rays-partial", Some(&toml), &[], &partial);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("records its rays in one whole run"));
+}

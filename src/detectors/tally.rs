@@ -192,6 +192,22 @@ pub struct Tallies {
     /// A run's exact totals, which every f64 above (but the counters' seconds) is rounded from;
     /// None in a batch's own tallies, whose sums are plain f64 in photon order.
     pub sums: Option<Box<TallySums>>,
+    /// Arrivals on the surfaces of ray-set detectors, in photon order within a batch and batch
+    /// order within a run (empty without such detectors).
+    pub rays: Vec<RayArrival>,
+}
+
+/// One photon's arrival on a ray-set detector's surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RayArrival {
+    pub detector: u32,
+    /// The hit point in the tracer's recentred frame (m), and the direction of travel.
+    pub position: [f64; 3],
+    pub direction: [f32; 3],
+    /// nm; NaN in grey transport.
+    pub lambda_nm: f64,
+    /// The photon's weight on arrival (× the run's watts per weight = its power).
+    pub weight: f64,
 }
 
 /// The exact totals behind a run's `Tallies` (see `exact`): what partial runs and MPI ranks
@@ -341,6 +357,7 @@ impl Tallies {
             counters: Counters::default(),
             batches: 0,
             sums: None,
+            rays: Vec::new(),
         }
     }
 
@@ -416,6 +433,7 @@ impl Tallies {
         if b.photons > 0 {
             self.batches += 1;
         }
+        self.rays.extend_from_slice(&b.rays);
         self.add_counts(b);
     }
 
@@ -425,6 +443,9 @@ impl Tallies {
         let (Some(sums), Some(other)) = (self.sums.as_deref_mut(), b.sums.as_deref()) else {
             return Err("only a run's exact tallies can be merged".into());
         };
+        if !b.rays.is_empty() || !self.rays.is_empty() {
+            return Err("ray sets are recorded by one whole run and cannot be merged".into());
+        }
         if sums.channels.len() != other.channels.len()
             || sums.channels.iter().zip(&other.channels).any(|(a, o)| a.sum.len() != o.sum.len())
         {

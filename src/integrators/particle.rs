@@ -9,7 +9,7 @@ use glam::{DVec3, Vec3A};
 
 use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
-use crate::detectors::tally::{HistoryScores, Tallies};
+use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
@@ -99,6 +99,8 @@ impl Kernel<'_> {
             && !(fx.absorbing_media
                 && self.scene.surfaces.iter().any(|s| is_passable(&self.scene.materials[s.material].material)))
             && self.camera.is_some()
+            // A ray set ties each direction to its own wavelength: no lane may borrow its path.
+            && !self.scene.lights.iter().any(|l| matches!(l.shape, crate::scene::LightShape::Rays { .. }))
     }
 
     /// Traces one batch, dispatching once to the kernel specialised for the run.
@@ -245,6 +247,9 @@ impl Kernel<'_> {
         let planes = &scene.planes;
         let has_planes = !planes.is_empty();
         let has_texels = has_maps || has_planes;
+        // Ray-set detectors: each arrival on their surfaces is kept (a push per arrival, off
+        // unless asked for).
+        let has_rays = !scene.ray_detectors.is_empty();
         let mut texels = scores(if has_texels { scene.map_texels() } else { 0 });
         // Far-field detectors and surface spectra, likewise off unless asked for.
         let detectors = &scene.detectors;
@@ -572,6 +577,18 @@ impl Kernel<'_> {
 
                 incident.add(surface, weight);
                 let (p, err) = geo.hit_point(&hit);
+                if has_rays {
+                    if let Some(detector) = scene.surface_rays[surface as usize] {
+                        let q = p.as_dvec3();
+                        out.rays.push(RayArrival {
+                            detector,
+                            position: [q.x, q.y, q.z],
+                            direction: dir.to_array(),
+                            lambda_nm: lambda,
+                            weight,
+                        });
+                    }
+                }
                 if has_maps {
                     if let Some(map) = maps[surface as usize] {
                         texels.add(map.texel_of(p, hit.b, geo.local[hit.prim as usize]) as u32, weight);

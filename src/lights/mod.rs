@@ -22,6 +22,14 @@ enum Origin {
         position: Vec3A,
         axis: Vec3A,
     },
+    /// A ray set's points and unit directions, picked by power; wavelengths (nm) when the set
+    /// carries them, else empty.
+    Rays {
+        positions: Vec<Vec3A>,
+        directions: Vec<Vec3A>,
+        lambda_nm: Vec<f64>,
+        pick: Discrete,
+    },
 }
 
 struct EmitLight {
@@ -111,6 +119,16 @@ impl Emitter {
                     LightShape::Point { position, axis } => {
                         Origin::Point { position: position.as_vec3a(), axis: axis.as_vec3a().normalize() }
                     }
+                    LightShape::Rays { set } => Origin::Rays {
+                        positions: set.rays.iter().map(|r| r.position.as_vec3a()).collect(),
+                        directions: set.rays.iter().map(|r| r.direction.as_vec3a().normalize()).collect(),
+                        lambda_nm: if set.has_wavelengths {
+                            set.rays.iter().map(|r| r.lambda_nm).collect()
+                        } else {
+                            vec![]
+                        },
+                        pick: Discrete::new(&set.rays.iter().map(|r| r.power_w).collect::<Vec<_>>()),
+                    },
                 };
                 let cie = crate::spectrum::color::cmf();
                 let xyz = cie.integrate(&l.spectrum, range);
@@ -154,7 +172,7 @@ impl Emitter {
             (LightMedium::PerTriangle(media), Origin::Area { prims, .. }) => {
                 prims.binary_search(&prim).ok().and_then(|i| media[i])
             }
-            (LightMedium::PerTriangle(_), Origin::Point { .. }) => None,
+            (LightMedium::PerTriangle(_), _) => None,
         }
     }
 
@@ -172,6 +190,14 @@ impl Emitter {
             (f64::NAN, l.grey_xyz)
         };
         let lp = self.sample_point(geo, light, [u[2], u[3], u[4]]);
+        // A ray set's own wavelength, of the ray `sample_point` picked with the same number.
+        let (lambda_nm, xyz) = match &l.origin {
+            Origin::Rays { lambda_nm: own, pick, .. } if SPECTRAL && !own.is_empty() => {
+                let lambda = own[pick.sample(u[2])];
+                (lambda, self.colour(lambda))
+            }
+            _ => (lambda_nm, xyz),
+        };
         let dir = self.direction_of(light, lp.axis, u[5] as f32, u[6] as f32);
         let origin = if lp.normal == Vec3A::ZERO { lp.point } else { geo.spawn(lp.point, lp.err, lp.prim, dir) };
         Birth {
@@ -264,7 +290,7 @@ impl Emitter {
 
     #[inline]
     pub fn is_point(&self, light: usize) -> bool {
-        matches!(self.lights[light].origin, Origin::Point { .. })
+        matches!(self.lights[light].origin, Origin::Point { .. } | Origin::Rays { .. })
     }
 
     /// A collimated light emits along a single direction: no pinhole and no connection sees it.
@@ -315,6 +341,17 @@ impl Emitter {
             Origin::Point { position, axis } => {
                 LightPoint { point: *position, err: Vec3A::ZERO, normal: Vec3A::ZERO, prim: NO_PRIM, axis: *axis }
             }
+            // The ray picked by power, its direction as the axis a collimated beam leaves along.
+            Origin::Rays { positions, directions, pick, .. } => {
+                let k = pick.sample(u[0]);
+                LightPoint {
+                    point: positions[k],
+                    err: Vec3A::ZERO,
+                    normal: Vec3A::ZERO,
+                    prim: NO_PRIM,
+                    axis: directions[k],
+                }
+            }
         }
     }
 
@@ -349,7 +386,7 @@ impl Emitter {
     pub fn direction_pdf(&self, light: usize, axis: Vec3A, w: Vec3A) -> f32 {
         use std::f32::consts::PI;
         let l = &self.lights[light];
-        let is_point = matches!(l.origin, Origin::Point { .. });
+        let is_point = matches!(l.origin, Origin::Point { .. } | Origin::Rays { .. });
         let cos = axis.dot(w);
         match l.distribution {
             Distribution::Isotropic if is_point => 1.0 / (4.0 * PI),
@@ -386,6 +423,8 @@ fn light_medium(scene: &Scene, origin: &Origin) -> LightMedium {
     let geo = &scene.geometry;
     match origin {
         Origin::Point { position, .. } => LightMedium::Uniform(enclosing_dielectric(scene, *position, NO_PRIM)),
+        // Rays start in the world outside every dielectric (documented for `type = "rays"`).
+        Origin::Rays { .. } => LightMedium::Uniform(None),
         Origin::Area { prims, .. } => {
             let media: Vec<Option<u32>> = prims
                 .iter()

@@ -31,6 +31,7 @@ pub fn describe(scene: &Scene) -> String {
             LightShape::Area { surface } => {
                 format!("area, {:.6} m²", scene.surfaces[*surface].area_m2)
             }
+            LightShape::Rays { set } => format!("ray set, {} rays", set.rays.len()),
             LightShape::Point { position, .. } => {
                 let p = scene.file_coordinates(*position);
                 let unit = match scene.unit_m {
@@ -172,6 +173,7 @@ pub fn scene_info(scene: &Scene) -> serde_json::Value {
         .map(|l| {
             let (shape, surface, position) = match &l.shape {
                 LightShape::Area { surface } => ("area", Some(scene.surfaces[*surface].name.clone()), None),
+                LightShape::Rays { .. } => ("rays", None, None),
                 LightShape::Point { position, .. } => {
                     let p = scene.file_coordinates(*position);
                     ("point", None, Some([round_shown(p.x), round_shown(p.y), round_shown(p.z)]))

@@ -6,6 +6,7 @@ pub mod farfield;
 pub mod info;
 pub mod luminaire;
 pub mod maps;
+pub mod rays;
 pub mod state;
 pub mod volume;
 
@@ -511,6 +512,7 @@ pub fn run_file_names(scene: &Scene, image: bool, partial: bool) -> Vec<String> 
     for v in &scene.volumes {
         names.extend(["npy", "png"].map(|ext| crate::output::volume::file_name(&v.name, ext)));
     }
+    names.extend(scene.ray_detectors.iter().map(|d| rays::file_name(&d.name)));
     names
 }
 
@@ -836,6 +838,9 @@ pub fn write_run(dir: &Path, scene: &Scene, r: &RunResult) -> Result<RunReport, 
         wrote(crate::output::farfield::write_png(dir, e, &scene.stem())?);
         wrote(luminaire::write_ies(dir, e, &label)?);
         wrote(luminaire::write_ldt(dir, e, &label)?);
+    }
+    for k in 0..scene.ray_detectors.len() {
+        wrote(rays::write_npy(dir, scene, r, k)?);
     }
     for v in &volumes {
         wrote(crate::output::volume::write_npy(dir, v)?);

@@ -158,6 +158,12 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
             return Err(Error::Usage(format!("--time must be a positive number of seconds, found {t}")));
         }
     }
+    if let (Some(_), Some(d)) = (opts.batches, scene.ray_detectors.first()) {
+        return Err(Error::Usage(format!(
+            "ray-set detector \"{}\" records its rays in one whole run: --batches (and MPI) cannot split it",
+            d.name
+        )));
+    }
     if let Some((a, b)) = opts.batches {
         if a >= b {
             return Err(Error::Usage(format!("--batches {a}..{b} holds no batch: the end must exceed the start")));
@@ -344,6 +350,7 @@ pub fn simulate_controlled(
         crate::detectors::tally::ErrorModel::Batches => MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
     };
     let mut failure: Option<String> = None;
+    let mut ray_counts = vec![0u64; scene.ray_detectors.len()];
     let next = AtomicU64::new(0);
     let merged = AtomicU64::new(0);
     let (tx, rx) = std::sync::mpsc::channel();
@@ -423,6 +430,17 @@ pub fn simulate_controlled(
             }
             while let Some((t, f)) = pending.remove(&want) {
                 tallies.merge(&t);
+                for r in &t.rays {
+                    ray_counts[r.detector as usize] += 1;
+                }
+                if let Some((d, _)) = scene.ray_detectors.iter().zip(&ray_counts).find(|(d, &n)| n > d.max_rays) {
+                    failure = Some(format!(
+                        "ray-set detector \"{}\" recorded more than its max_rays = {} arrivals after {} photons: \
+                         raise `max_rays` (each ray takes 64 bytes) or trace fewer photons",
+                        d.name, d.max_rays, tallies.photons
+                    ));
+                    break 'merge;
+                }
                 if let (Some(film), Some(f)) = (film.as_mut(), &f) {
                     film.merge(f, t.photons);
                 }

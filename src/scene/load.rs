@@ -217,6 +217,29 @@ fn bounding_centre(shaped: &[Shaped], point_positions: &[Option<(DVec3, DVec3)>]
     ((lo + hi) * 0.5, (hi - lo).max_element())
 }
 
+/// The spectral power of a ray set that carries wavelengths, as 1 nm bins over the range (linear
+/// between bin centres): the shape its light's colour and efficacy are taken from.
+fn ray_spectrum(set: &crate::scene::rays::RaySet, range: (f64, f64)) -> Result<Spectrum, String> {
+    if let Some(r) = set.rays.iter().find(|r| r.lambda_nm < range.0 || r.lambda_nm > range.1) {
+        return Err(format!(
+            "a ray of {} nm lies outside the wavelength range {}–{} nm",
+            r.lambda_nm, range.0, range.1
+        ));
+    }
+    let bins = ((range.1 - range.0).ceil() as usize).max(1);
+    let width = (range.1 - range.0) / bins as f64;
+    let mut power = vec![0.0; bins];
+    for r in &set.rays {
+        power[(((r.lambda_nm - range.0) / width) as usize).min(bins - 1)] += r.power_w;
+    }
+    let mut points: Vec<(f64, f64)> =
+        power.iter().enumerate().map(|(k, p)| (range.0 + (k as f64 + 0.5) * width, p / width)).collect();
+    // The ends of the range hold the outer bins' densities, so nothing of them is lost.
+    points.insert(0, (range.0, points[0].1));
+    points.push((range.1, points[points.len() - 1].1));
+    Ok(Spectrum::Table(crate::spectrum::Table::new(points)))
+}
+
 /// The effects of the materials some surface uses; spectral also when a surface asks for its
 /// spectrum, since each photon must then carry a wavelength.
 fn effects_in_use(materials: &[NamedMaterial], surfaces: &[Surface], range: (f64, f64), camera: bool) -> Effects {
@@ -248,13 +271,25 @@ impl<'s> Loader<'s> {
         // Triangulate in metres (f64): surfaces first, then area lights.
         let mut warnings = Vec::new();
         let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut warnings)?;
-        let point_positions = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
-        let (origin_m, span_m) = bounding_centre(&shaped, &point_positions);
+        let (point_positions, ray_sets) = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
+        // Ray sets count toward the scene's box by their extremes.
+        let ray_box: Vec<Option<(DVec3, DVec3)>> = ray_sets
+            .iter()
+            .flatten()
+            .flat_map(|set| {
+                let lo = set.rays.iter().fold(DVec3::INFINITY, |a, r| a.min(r.position));
+                let hi = set.rays.iter().fold(DVec3::NEG_INFINITY, |a, r| a.max(r.position));
+                [Some((lo, DVec3::Z)), Some((hi, DVec3::Z))]
+            })
+            .collect();
+        let boxed: Vec<Option<(DVec3, DVec3)>> = point_positions.iter().copied().chain(ray_box).collect();
+        let (origin_m, span_m) = bounding_centre(&shaped, &boxed);
         let mut assembled =
             self.single_precision_surfaces(shaped, origin_m, span_m, light_specs.len(), &mut warnings)?;
         let interfaces = self.join_shared_faces(&mut assembled, &mut materials, &mut material_medium)?;
         let Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys } = assembled;
-        let (lights, light_lines) = self.lights(light_specs, &point_positions, &light_surface, origin_m, range)?;
+        let (lights, light_lines) =
+            self.lights(light_specs, &point_positions, ray_sets, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
 
         let surface_medium: Vec<Option<u32>> = surfaces.iter().map(|s| material_medium[s.material].inside).collect();
@@ -294,7 +329,11 @@ impl<'s> Loader<'s> {
                     .to_string(),
             );
         }
-        let (detectors, volumes, planes) = self.detectors(root, origin_m, unit_m, &surfaces)?;
+        let (detectors, volumes, planes, ray_detectors) = self.detectors(root, origin_m, unit_m, &surfaces)?;
+        let mut surface_rays = vec![None; surfaces.len()];
+        for (k, d) in ray_detectors.iter().enumerate() {
+            surface_rays[d.surface] = Some(k as u32);
+        }
         // Constant-over-range spectra become constants, so grey transport never evaluates a table.
         for m in &mut materials {
             simplify_material(&mut m.material, range);
@@ -350,6 +389,8 @@ impl<'s> Loader<'s> {
             detectors,
             volumes,
             planes,
+            ray_detectors,
+            surface_rays,
             warnings,
             reference,
             origin_m,
@@ -638,7 +679,22 @@ impl<'s> Loader<'s> {
         let name = self.name(t)?;
         let shape = t.require("shape", |n| shapes::parse_shape(n, &self.base_dir, true))?;
         let material = if t.has("material") { self.material_ref(t, material_index)? } else { 0 };
-        let is_point = matches!(shape, ShapeSpec::Point { .. });
+        let ray_set = match &shape {
+            ShapeSpec::Rays { set, .. } => Some(set.clone()),
+            _ => None,
+        };
+        if ray_set.is_some() {
+            for (key, why) in [
+                ("distribution", "a ray set's rays carry their own directions"),
+                ("direction", "a ray set's rays carry their own directions"),
+                ("radiance", "a ray set has no area: give `power_w` or `power_lm`, or neither (the file's power)"),
+            ] {
+                if t.has(key) {
+                    return Err(t.err_at(key, format!("{why}: drop `{key}`")));
+                }
+            }
+        }
+        let is_point = matches!(shape, ShapeSpec::Point { .. }) || ray_set.is_some();
         let spectrum_bins = self.spectrum_bins(t)?;
         if is_point && spectrum_bins.is_some() {
             return Err(t.err_at(
@@ -648,7 +704,12 @@ impl<'s> Loader<'s> {
         }
         // SPEC: area lights default to lambertian; a point light has no surface to be
         // Lambertian about, so it defaults to isotropic.
-        let default_distribution = if is_point { Distribution::Isotropic } else { Distribution::Lambertian };
+        let default_distribution = match (&ray_set, is_point) {
+            // Each ray leaves along its own direction: a delta in direction, as a collimated beam.
+            (Some(_), _) => Distribution::Collimated,
+            (None, true) => Distribution::Isotropic,
+            (None, false) => Distribution::Lambertian,
+        };
         let (distribution, ies) =
             t.with("distribution", |n| self.distribution(n))?.unwrap_or((default_distribution, None));
         if let (Some(ies), false) = (&ies, is_point) {
@@ -663,7 +724,10 @@ impl<'s> Loader<'s> {
                 ));
             }
         }
-        let power = self.light_power(t, ies.as_ref(), range)?;
+        let power = match &ray_set {
+            Some(set) if !t.has("power_w") && !t.has("power_lm") => PowerSpec::Watts(set.total_w),
+            _ => self.light_power(t, ies.as_ref(), range)?,
+        };
         if matches!(power, PowerSpec::Radiance(_)) && ies.is_some() {
             return Err(t.err_at(
                 "radiance",
@@ -676,8 +740,15 @@ impl<'s> Loader<'s> {
                 "`radiance` is already a spectrum (a number or a spectrum table): drop `spectrum`, or give `power_w`",
             ));
         }
-        let spectrum =
-            t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0));
+        let spectrum = match ray_set.as_deref().filter(|set| set.has_wavelengths) {
+            Some(set) => {
+                if t.has("spectrum") {
+                    return Err(t.err_at("spectrum", "the rays carry their own wavelengths: drop `spectrum`"));
+                }
+                ray_spectrum(set, range).map_err(|m| t.err_at("shape", m))?
+            }
+            None => t.with("spectrum", |n| self.spectrum(n, SpectrumUse::Emission))?.unwrap_or(Spectrum::Constant(1.0)),
+        };
         if !matches!(power, PowerSpec::Radiance(_)) && spectrum.integral(range) <= 0.0 {
             return Err(t.err_at("spectrum", "the spectrum is zero over the whole wavelength range"));
         }
@@ -709,7 +780,7 @@ impl<'s> Loader<'s> {
             if t.has("material") {
                 return Err(t.err_at("material", "a point light is not a surface and takes no material"));
             }
-            if distribution != Distribution::Isotropic && axis.is_none() {
+            if distribution != Distribution::Isotropic && axis.is_none() && ray_set.is_none() {
                 return Err(t.err(format!(
                     "a point light with distribution {} needs `direction = [x, y, z]`",
                     distribution.describe()
@@ -838,8 +909,9 @@ impl<'s> Loader<'s> {
         unit_m: f64,
         shaped: &mut Vec<Shaped>,
         warnings: &mut Vec<String>,
-    ) -> R<Vec<Option<(DVec3, DVec3)>>> {
+    ) -> R<(Vec<Option<(DVec3, DVec3)>>, Vec<Option<crate::scene::rays::RaySet>>)> {
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
+        let mut ray_sets: Vec<Option<crate::scene::rays::RaySet>> = vec![None; light_specs.len()];
         for (i, spec) in light_specs.iter_mut().enumerate() {
             let key = child_path(&spec.path, "shape");
             // The luminaire turns with its light: c0 is rotated like the point light's direction
@@ -862,6 +934,26 @@ impl<'s> Loader<'s> {
                     let axis = spec.axis.map(|a| transform.apply_dir(a).normalize()).unwrap_or(DVec3::Z);
                     point_positions.push(Some((p, axis)));
                 }
+                ShapeSpec::Rays { set, transform, .. } => {
+                    let mut moved = (**set).clone();
+                    for r in &mut moved.rays {
+                        r.position = transform.apply_point(r.position) * unit_m;
+                        r.direction = transform.apply_dir(r.direction).normalize();
+                    }
+                    if let Some(r) = moved.rays.iter().find(|r| !(r.position.abs().max_element() <= MAX_COORD_M)) {
+                        return Err(InputError::new(
+                            self.src.file,
+                            &key,
+                            Some(spec.shape_line),
+                            format!(
+                                "a ray starts at {:?} m; every point must lie within {MAX_COORD_M:e} m of the origin",
+                                r.position
+                            ),
+                        ));
+                    }
+                    ray_sets[i] = Some(moved);
+                    point_positions.push(None);
+                }
                 other => {
                     let shapes::Triangles { tris: t, tangents, .. } =
                         shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
@@ -883,7 +975,7 @@ impl<'s> Loader<'s> {
                 }
             }
         }
-        Ok(point_positions)
+        Ok((point_positions, ray_sets))
     }
 
     /// Adjacent dielectrics: two closed dielectric surfaces that share a face meet at coincident
@@ -1088,6 +1180,7 @@ impl<'s> Loader<'s> {
         &self,
         light_specs: Vec<LightSpec>,
         point_positions: &[Option<(DVec3, DVec3)>],
+        mut ray_sets: Vec<Option<crate::scene::rays::RaySet>>,
         light_surface: &[Option<(usize, f64)>],
         origin_m: DVec3,
         range: (f64, f64),
@@ -1096,10 +1189,14 @@ impl<'s> Loader<'s> {
         let mut total_power_w = 0.0;
         let mut light_lines = Vec::with_capacity(light_specs.len());
         for (i, spec) in light_specs.into_iter().enumerate() {
-            let (shape, area_m2) = match (point_positions[i], light_surface[i]) {
-                (Some((p, axis)), _) => (LightShape::Point { position: p - origin_m, axis }, 0.0),
-                (None, Some((surface, area))) => (LightShape::Area { surface }, area),
-                (None, None) => unreachable!("every light is a point or a surface"),
+            let (shape, area_m2) = match (point_positions[i], light_surface[i], ray_sets[i].take()) {
+                (Some((p, axis)), _, _) => (LightShape::Point { position: p - origin_m, axis }, 0.0),
+                (None, Some((surface, area)), _) => (LightShape::Area { surface }, area),
+                (None, None, Some(mut set)) => {
+                    set.rays.iter_mut().for_each(|r| r.position -= origin_m);
+                    (LightShape::Rays { set: std::sync::Arc::new(set) }, 0.0)
+                }
+                (None, None, None) => unreachable!("every light is a point, a surface or a ray set"),
             };
             let (power_w, spectrum) = match spec.power {
                 PowerSpec::Watts(p) => (p, spec.spectrum),
@@ -1191,12 +1288,13 @@ impl<'s> Loader<'s> {
         for (i, l) in lights.iter().enumerate() {
             let Some(c0) = l.ies.as_ref().and_then(|ies| ies.c0.map(|c| (c, ies.c0_line))) else { continue };
             let (c0, c0_line) = c0;
-            let axes: Vec<DVec3> = match l.shape {
-                LightShape::Point { axis, .. } => vec![axis],
+            let axes: Vec<DVec3> = match &l.shape {
+                LightShape::Point { axis, .. } => vec![*axis],
+                LightShape::Rays { .. } => vec![],
                 LightShape::Area { surface } => tris
                     .iter()
                     .zip(tri_surface)
-                    .filter(|(_, &s)| s as usize == surface)
+                    .filter(|(_, &s)| s as usize == *surface)
                     .map(|(t, _)| {
                         let [a, b, c] = t.map(|v| v.as_dvec3());
                         (b - a).cross(c - a).normalize()
@@ -1205,7 +1303,9 @@ impl<'s> Loader<'s> {
             };
             if let Some(k) = axes.iter().position(|a| a.cross(c0).length() < 1e-3) {
                 let whose = match l.shape {
-                    LightShape::Point { .. } => "the light's direction (its nadir)".to_string(),
+                    LightShape::Point { .. } | LightShape::Rays { .. } => {
+                        "the light's direction (its nadir)".to_string()
+                    }
                     LightShape::Area { .. } if axes.iter().all(|a| (*a - axes[0]).length() < 1e-9) => {
                         "the light's normal (its nadir)".to_string()
                     }
@@ -1946,10 +2046,12 @@ impl<'s> Loader<'s> {
         Vec<crate::scene::farfield::FarField>,
         Vec<crate::scene::volume::VolumeGrid>,
         Vec<crate::scene::plane::WorkPlane>,
+        Vec<crate::scene::rays::RayDetector>,
     )> {
         let mut out: Vec<crate::scene::farfield::FarField> = Vec::new();
         let mut volumes: Vec<crate::scene::volume::VolumeGrid> = Vec::new();
         let mut planes: Vec<crate::scene::plane::WorkPlane> = Vec::new();
+        let mut ray_detectors: Vec<crate::scene::rays::RayDetector> = Vec::new();
         root.with("detectors", |n| {
             n.each(|item| {
                 let t = item.table()?;
@@ -1962,11 +2064,17 @@ impl<'s> Loader<'s> {
                     planes.push(self.work_plane(t, origin_m, unit_m, surfaces, &planes)?);
                     return Ok(());
                 }
+                if kind == "rays" {
+                    ray_detectors.push(self.ray_detector(t, surfaces, &ray_detectors)?);
+                    return Ok(());
+                }
                 t.allow(&["type", "name", "resolution", "nadir", "c0"])?;
                 if kind != "farfield" {
                     return Err(t.err_at(
                         "type",
-                        format!("unknown detector type \"{kind}\"; known: \"farfield\", \"plane\", \"volume\""),
+                        format!(
+                            "unknown detector type \"{kind}\"; known: \"farfield\", \"plane\", \"rays\", \"volume\""
+                        ),
                     ));
                 }
                 let name = t.str("name")?.unwrap_or_else(|| format!("farfield{}", out.len()));
@@ -2025,7 +2133,54 @@ impl<'s> Loader<'s> {
                 Ok(())
             })
         })?;
-        Ok((out, volumes, planes))
+        Ok((out, volumes, planes, ray_detectors))
+    }
+
+    /// `type = "rays"`: `name`, `surface` (a surface's name), `max_rays` (default 10⁷).
+    fn ray_detector(
+        &self,
+        t: Table<'s, '_>,
+        surfaces: &[Surface],
+        earlier: &[crate::scene::rays::RayDetector],
+    ) -> R<crate::scene::rays::RayDetector> {
+        t.allow(&["type", "name", "surface", "max_rays"])?;
+        let name = t.str("name")?.unwrap_or_else(|| format!("rays{}", earlier.len()));
+        let stem = crate::scene::map::file_stem(&name);
+        if stem.len() > MAX_NAME_BYTES {
+            return Err(t.err_at(
+                "name",
+                format!(
+                    "a name of {} bytes is too long: it names rays_<name>.npy; at most {MAX_NAME_BYTES}",
+                    name.len()
+                ),
+            ));
+        }
+        if let Some(d) = earlier.iter().find(|d| crate::scene::map::file_stem(&d.name) == stem) {
+            return Err(t.err_at(
+                "name",
+                format!("ray-set detectors \"{}\" and \"{name}\" would both write rays_{stem}.npy: rename one", d.name),
+            ));
+        }
+        let wanted = t.req_str("surface")?;
+        let Some(surface) = surfaces.iter().position(|s| s.name == wanted) else {
+            let known: Vec<&str> = surfaces.iter().map(|s| s.name.as_str()).collect();
+            return Err(
+                t.err_at("surface", format!("no surface is named \"{wanted}\"; surfaces: {}", known.join(", ")))
+            );
+        };
+        if let Some(d) = earlier.iter().find(|d| d.surface == surface) {
+            return Err(t.err_at("surface", format!("ray-set detector \"{}\" already records \"{wanted}\"", d.name)));
+        }
+        let max_rays = t
+            .with("max_rays", |n| {
+                let v = n.u64()?;
+                if !(1..=crate::scene::rays::MAX_RAYS).contains(&v) {
+                    return Err(n.err(format!("max_rays must be between 1 and {}", crate::scene::rays::MAX_RAYS)));
+                }
+                Ok(v)
+            })?
+            .unwrap_or(10_000_000);
+        Ok(crate::scene::rays::RayDetector { name, surface, max_rays })
     }
 
     /// `type = "plane"`: `name`, `corners = [a, b, c, d]` (the file's unit; a parallelogram,

@@ -11,6 +11,7 @@ pub mod map;
 mod obj;
 pub mod plane;
 mod ply;
+pub mod rays;
 pub(crate) mod shapes;
 mod stl;
 pub mod volume;
@@ -304,6 +305,9 @@ pub enum LightShape {
     Area { surface: usize },
     /// Emits from a point; `axis` is the direction of collimated or cosine-power emission.
     Point { position: DVec3, axis: DVec3 },
+    /// Emits a ray set (`rays`): positions in the tracer's recentred frame (m), unit directions,
+    /// picked in proportion to their power.
+    Rays { set: std::sync::Arc<rays::RaySet> },
 }
 
 #[derive(Clone, Debug)]
@@ -415,6 +419,9 @@ pub struct Scene {
     pub volumes: Vec<volume::VolumeGrid>,
     /// Work planes (`[[detectors]] type = "plane"`): their slots follow the surface maps' texels.
     pub planes: Vec<plane::WorkPlane>,
+    /// Ray-set detectors (`[[detectors]] type = "rays"`), and per surface the one recording it.
+    pub ray_detectors: Vec<rays::RayDetector>,
+    pub surface_rays: Vec<Option<u32>>,
     /// Problems that did not stop the load (skipped degenerate mesh faces), to show the user.
     pub warnings: Vec<String>,
     /// A known answer for one surface's incident power (`[reference]`), if the file gives one.

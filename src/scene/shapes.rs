@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat3, DVec2, DVec3};
 
-use super::doc::{Node, Source, R};
+use super::doc::{child_path, Node, Source, R};
 use super::obj;
 use crate::error::InputError;
 
@@ -40,12 +40,43 @@ impl Transform {
 
 #[derive(Clone, Debug)]
 pub enum ShapeSpec {
-    Quad { corners: [[f64; 3]; 4], transform: Transform },
-    Disk { center: [f64; 3], normal: [f64; 3], radius: f64, segments: u32, transform: Transform },
-    Sphere { center: [f64; 3], radius: f64, subdivisions: u32, transform: Transform },
-    Box { min: [f64; 3], max: [f64; 3], transform: Transform },
-    Mesh { file: PathBuf, key_line: usize, transform: Transform },
-    Point { position: [f64; 3], transform: Transform },
+    Quad {
+        corners: [[f64; 3]; 4],
+        transform: Transform,
+    },
+    Disk {
+        center: [f64; 3],
+        normal: [f64; 3],
+        radius: f64,
+        segments: u32,
+        transform: Transform,
+    },
+    Sphere {
+        center: [f64; 3],
+        radius: f64,
+        subdivisions: u32,
+        transform: Transform,
+    },
+    Box {
+        min: [f64; 3],
+        max: [f64; 3],
+        transform: Transform,
+    },
+    Mesh {
+        file: PathBuf,
+        key_line: usize,
+        transform: Transform,
+    },
+    Point {
+        position: [f64; 3],
+        transform: Transform,
+    },
+    /// A ray set read from its file (lights only), in the file's coordinates before `transform`.
+    Rays {
+        set: std::sync::Arc<crate::scene::rays::RaySet>,
+        file: PathBuf,
+        transform: Transform,
+    },
 }
 
 impl ShapeSpec {
@@ -57,7 +88,8 @@ impl ShapeSpec {
             | ShapeSpec::Sphere { transform, .. }
             | ShapeSpec::Box { transform, .. }
             | ShapeSpec::Mesh { transform, .. }
-            | ShapeSpec::Point { transform, .. } => transform,
+            | ShapeSpec::Point { transform, .. }
+            | ShapeSpec::Rays { transform, .. } => transform,
         }
     }
 }
@@ -136,11 +168,25 @@ pub fn parse_shape(n: Node, base_dir: &Path, is_light: bool) -> R<ShapeSpec> {
             t.allow(&["type", "position", "transform"])?;
             Ok(ShapeSpec::Point { position: t.req_vec3("position")?, transform })
         }
+        "rays" => {
+            if !is_light {
+                return Err(t.err_at("type", "a ray set has no area: `rays` is for lights only"));
+            }
+            t.allow(&["type", "file", "transform"])?;
+            let rel = t.req_str("file")?;
+            let file = base_dir.join(rel);
+            let line = t.line_of_key("file");
+            let set = crate::scene::rays::read(&file).map_err(|mut e| {
+                e.message = format!("{} (ray set named by `{}` at line {line})", e.message, child_path(t.path, "file"));
+                e
+            })?;
+            Ok(ShapeSpec::Rays { set: std::sync::Arc::new(set), file, transform })
+        }
         other => Err(t.err_at(
             "type",
             format!(
                 "unknown shape type \"{other}\"; known types: quad, disk, sphere, box, mesh{}",
-                if is_light { ", point" } else { "" }
+                if is_light { ", point, rays" } else { "" }
             ),
         )),
     }
@@ -267,7 +313,7 @@ pub fn triangulate(
             let tangents = faces.iter().map(|f| f.tangent).collect();
             (faces.into_iter().map(|f| f.verts).collect(), tangents, transform)
         }
-        ShapeSpec::Point { .. } => unreachable!("points are not triangulated"),
+        ShapeSpec::Point { .. } | ShapeSpec::Rays { .. } => unreachable!("points and ray sets are not triangulated"),
     };
     let flip = transform.flips();
     let tris = raw
