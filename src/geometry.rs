@@ -124,6 +124,9 @@ pub struct Geometry {
     /// Each triangle's index among its own surface's triangles (in the order they were given).
     pub local: Vec<u32>,
     bvh: Option<CwBvh>,
+    /// Each triangle's unit vertex normals for smooth shading, zero for a flat triangle; empty
+    /// when no triangle has any (`shading_normal`).
+    shading: Vec<[Vec3A; 3]>,
 }
 
 impl Geometry {
@@ -138,10 +141,22 @@ impl Geometry {
     /// As `build`, with each triangle's surface tangent (the u axis of an anisotropic
     /// material; `tangent`): `build` takes each triangle's first edge.
     pub fn build_with_tangents(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>, tangents: Vec<Vec3A>) -> Result<Self, String> {
+        Self::build_with_shading(tris, surface, tangents, Vec::new())
+    }
+
+    /// As `build_with_tangents`, with each triangle's vertex normals for smooth shading (zero for
+    /// a flat one), or none at all (empty).
+    pub fn build_with_shading(
+        tris: Vec<[Vec3A; 3]>,
+        surface: Vec<u32>,
+        tangents: Vec<Vec3A>,
+        shading: Vec<[Vec3A; 3]>,
+    ) -> Result<Self, String> {
         assert_eq!(tris.len(), surface.len());
         assert_eq!(tris.len(), tangents.len());
+        assert!(shading.is_empty() || shading.len() == tris.len());
         if tris.is_empty() {
-            return Ok(Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None });
+            return Ok(Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None, shading: vec![] });
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
         // An 8-wide BVH with quantised child boxes (obvhs CWBVH): one 80-byte node per 8
@@ -188,7 +203,31 @@ impl Geometry {
             .zip(&order)
             .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
             .collect();
-        Ok(Geometry { tris, surface, local, bvh: Some(bvh) })
+        let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
+        Ok(Geometry { tris, surface, local, bvh: Some(bvh), shading })
+    }
+
+    /// Whether any triangle has vertex normals for smooth shading.
+    pub fn has_shading_normals(&self) -> bool {
+        !self.shading.is_empty()
+    }
+
+    /// The shading normal of triangle `prim` at barycentrics `b`: its vertex normals
+    /// interpolated (b₀n₀ + b₁n₁ + b₂n₂, unit), turned to the geometric normal's side (which
+    /// decides sides and leaks everywhere); the geometric normal for a flat triangle.
+    #[inline]
+    pub fn shading_normal(&self, prim: usize, b: [f32; 3]) -> Vec3A {
+        let ng = self.normal(prim);
+        let Some(v) = self.shading.get(prim) else { return ng };
+        if v[0] == Vec3A::ZERO {
+            return ng;
+        }
+        let ns = (v[0] * b[0] + v[1] * b[1] + v[2] * b[2]).normalize_or_zero();
+        match ns.dot(ng) {
+            d if d > 0.0 => ns,
+            d if d < 0.0 => -ns,
+            _ => ng,
+        }
     }
 
     pub fn len(&self) -> usize {

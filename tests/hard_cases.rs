@@ -488,3 +488,58 @@ fn rays_with_negative_zero_direction_components_find_their_hits() {
     assert_eq!(f.ledger.escaped_w, 0.0, "{} W of the beam went past the plate", f.ledger.escaped_w);
     assert!((surface(&f, "plate").incident_w - 1.0).abs() < 1e-9);
 }
+
+/// A low-poly sphere OBJ (5 facets around, 3 bands, 20 faces) with vertex normals, radius 1.
+fn smooth_low_poly_sphere(path: &std::path::Path) {
+    use std::f64::consts::PI;
+    let (nu, nv) = (5usize, 3usize);
+    let mut s = String::from("v 0 0 1\nvn 0 0 1\n");
+    for j in 1..nv {
+        let theta = PI * j as f64 / nv as f64;
+        for i in 0..nu {
+            let phi = 2.0 * PI * i as f64 / nu as f64;
+            let d = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+            s.push_str(&format!("v {} {} {}\nvn {} {} {}\n", d[0], d[1], d[2], d[0], d[1], d[2]));
+        }
+    }
+    s.push_str("v 0 0 -1\nvn 0 0 -1\n");
+    let ring = |j: usize, i: usize| 2 + (j - 1) * nu + i % nu;
+    let last = 2 + (nv - 1) * nu;
+    let mut face = |a: usize, b: usize, c: usize| s.push_str(&format!("f {a}//{a} {b}//{b} {c}//{c}\n"));
+    for i in 0..nu {
+        face(1, ring(1, i), ring(1, i + 1));
+        face(last, ring(nv - 1, i + 1), ring(nv - 1, i));
+    }
+    for j in 1..nv - 1 {
+        for i in 0..nu {
+            face(ring(j, i), ring(j + 1, i), ring(j + 1, i + 1));
+            face(ring(j, i), ring(j + 1, i + 1), ring(j, i + 1));
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn a_smooth_shaded_closed_low_poly_sphere_never_leaks() {
+    // Shading normals turn up to ~50° from the facets' own: a reflection about one can point
+    // out through the facet. Sides are the geometric normal's, so such a direction is absorbed,
+    // never passed: of 10⁷ photons from a lamp inside, none may escape. Diffuse (reflectance
+    // 0.3: ~1.4 bounces each) and mirror (0.5: ~2) walls.
+    let dir = common::temp_dir("smooth-leak");
+    let obj = dir.join("sphere.obj");
+    smooth_low_poly_sphere(&obj);
+    for (material, photons) in
+        [("type = \"lambertian\"\nreflectance = 0.3", 10_000_000u64), ("type = \"mirror\"\nreflectance = 0.5", 2_000_000)]
+    {
+        let toml = format!(
+            "[materials.wall]\n{material}\n\n[[surfaces]]\nname = \"ball\"\nmaterial = \"wall\"\n\
+             shape = {{ type = \"mesh\", file = \"{}\" }}\n\n[[lights]]\nname = \"lamp\"\n\
+             shape = {{ type = \"point\", position = [0.13, -0.07, 0.05] }}\npower_w = 1\n",
+            obj.display()
+        );
+        let f = common::run(&toml, photons, 9);
+        assert_eq!(f.ledger.escaped_w, 0.0, "{material}: light leaked out of the closed sphere");
+        assert!(f.ledger.relative_residual() < 1e-12);
+        assert!(f.surfaces[0].absorbed_w > 0.99, "{material}: {:?}", f.ledger);
+    }
+}

@@ -357,3 +357,31 @@ fn malformed_ply_files_name_the_file_and_the_line_or_byte() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn malformed_obj_normals_name_the_file_and_the_line() {
+    let dir = std::env::temp_dir().join(format!("photon-obj-normals-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let cases = [
+        ("short.obj", format!("{tri}vn 0 0\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
+        ("zero.obj", format!("{tri}vn 0 0 0\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
+        ("nan.obj", format!("{tri}vn 0 nan 1\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
+        ("index.obj", format!("{tri}vn 0 0 1\nf 1//1 2//7 3//1\n"), ":5: normal index 7 refers to no `vn` (1 defined so far)"),
+        ("word.obj", format!("{tri}vn 0 0 1\nf 1//1 2//x 3//1\n"), ":5: malformed normal index"),
+    ];
+    for (name, text, expected) in cases {
+        let file = write(&dir, name, text.as_bytes());
+        let e = match photon::scene::load_str(Path::new("tests/inline.toml"), &scene_with(&file, "m")) {
+            Ok(_) => panic!("{name}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(name) && e.contains(expected), "{name}: expected \"{expected}\": {e}");
+    }
+    // Well-formed: `v//vn` and `v/vt/vn` both load.
+    for (name, text) in [("ok1.obj", format!("{tri}vn 0 0 1\nf 1//1 2//1 3//1\n")), ("ok2.obj", format!("{tri}vt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n"))] {
+        let file = write(&dir, name, text.as_bytes());
+        photon::scene::load_str(Path::new("tests/inline.toml"), &scene_with(&file, "m")).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

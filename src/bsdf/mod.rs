@@ -179,7 +179,10 @@ fn abg_table(prepared: &Prepared) -> &abg::Table {
 #[derive(Clone, Copy, Debug)]
 pub struct Bsdf<'a, const N: usize = 4> {
     model: Model<'a, N>,
+    /// The normal the model's frame is built on: the shading normal.
     n: Vec3A,
+    /// The geometric normal, when it differs (smooth shading; `shaded`).
+    ng: Option<Vec3A>,
 }
 
 impl<'a, const N: usize> Bsdf<'a, N> {
@@ -252,7 +255,39 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                 }
             }
         };
-        Bsdf { model, n }
+        Bsdf { model, n, ng: None }
+    }
+
+    /// The same model on a smooth-shaded surface: its frame stays on the shading normal given to
+    /// `new`, and `ng` (the geometric normal) decides sides. Against geometric cosines, which
+    /// every integrator uses, the shading BSDF f_s is (Veach 1997, §5.3)
+    ///   f(ωo, ωi) = f_s(ωo, ωi)·|ωi·n_s|/|ωi·n_g| (radiance) and its adjoint
+    ///   f*(ωo, ωi) = f_s(ωo, ωi)·|ωo·n_s|/|ωo·n_g| (importance: photons, light subpaths),
+    /// zero where the two normals disagree on whether ωi is a reflection or a transmission of ωo
+    /// (so nothing crosses a surface the geometry says it reflected from). The light tracer, the
+    /// path tracer and BDPT then integrate the same transport.
+    #[inline]
+    pub fn shaded(mut self, ng: Vec3A) -> Self {
+        if ng != self.n {
+            self.ng = Some(ng);
+        }
+        self
+    }
+
+    /// f (or its adjoint) over f_s against geometric cosines, or None where the normals
+    /// disagree about the sides (`shaded`).
+    #[inline]
+    fn shading_scale(&self, wo: Vec3A, wi: Vec3A, mode: Mode) -> Option<f64> {
+        let Some(ng) = self.ng else { return Some(1.0) };
+        let ns = self.n;
+        let (og, ig, os, is) = (wo.dot(ng), wi.dot(ng), wo.dot(ns), wi.dot(ns));
+        if (og * ig > 0.0) != (os * is > 0.0) || og == 0.0 || ig == 0.0 {
+            return None;
+        }
+        Some(match mode {
+            Mode::Radiance => (is.abs() / ig.abs()) as f64,
+            Mode::Importance => (os.abs() / og.abs()) as f64,
+        })
     }
 
     /// Probability per lane that a path arriving from `wo` is scattered at all, as far as it is
@@ -303,6 +338,10 @@ impl<'a, const N: usize> Bsdf<'a, N> {
     /// tracer applies the sample's weight, ≤ 1, as a second absorption.
     #[inline]
     pub fn samples_exactly(&self) -> bool {
+        if self.ng.is_some() {
+            // Shading normals reweight and reject samples: the weight is no longer the albedo.
+            return false;
+        }
         match &self.model {
             Model::Conductor(m) => m.ggx.is_none(),
             Model::RoughDielectric(_) | Model::Plastic(_) => false,
@@ -344,14 +383,16 @@ impl<'a, const N: usize> Bsdf<'a, N> {
     /// for refraction.
     #[inline]
     pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: Mode) -> Factored<N> {
-        match &self.model {
+        let Some(scale) = self.shading_scale(wo, wi, mode) else { return Factored::ZERO };
+        let f = match &self.model {
             Model::Lambertian(m) => m.f(wo, wi, self.n),
             Model::Conductor(m) => m.f(wo, wi, self.n),
             Model::RoughDielectric(m) => m.f(wo, wi, self.n, mode),
             Model::Plastic(m) => m.f(wo, wi, self.n),
             Model::Abg(m) => m.f(wo, wi, self.n, mode),
             _ => Factored::ZERO,
-        }
+        };
+        Factored { spectral: f.spectral, angular: f.angular * scale }
     }
 
     /// Solid-angle density with which `sample` from `wo` in `mode` returns `wi`; zero for delta
@@ -372,6 +413,22 @@ impl<'a, const N: usize> Bsdf<'a, N> {
     /// direction). None when nothing can leave (an absorber, a zero density).
     #[inline]
     pub fn sample(&self, wo: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
+        let sampled = self.sample_model(wo, mode, s)?;
+        if self.ng.is_none() {
+            return Some(sampled);
+        }
+        // The model's weight is f_s·|ωi·n_s|/pdf; against the geometric cosine |ωi·n_g| the
+        // throughput is f·|ωi·n_g|/pdf with f from `shaded`: × |ωi·n_g|/|ωi·n_s| × the scale.
+        let scale = self.shading_scale(wo, sampled.wi, mode)?;
+        let (ig, is) = (sampled.wi.dot(self.ng?).abs() as f64, sampled.wi.dot(self.n).abs() as f64);
+        if !(is > 0.0) {
+            return None;
+        }
+        Some(Sample { factor: sampled.factor * (scale * ig / is), ..sampled })
+    }
+
+    #[inline]
+    fn sample_model(&self, wo: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
         match &self.model {
             Model::Absorber => None,
             Model::Lambertian(m) => m.sample(wo, self.n, s),

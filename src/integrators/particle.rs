@@ -99,6 +99,8 @@ impl Kernel<'_> {
             && !(fx.absorbing_media
                 && self.scene.surfaces.iter().any(|s| is_passable(&self.scene.materials[s.material].material)))
             && self.camera.is_some()
+            // Shading normals reweight each event apart from the lanes' terms.
+            && !self.scene.geometry.has_shading_normals()
             // A ray set ties each direction to its own wavelength: no lane may borrow its path.
             && !self.scene.lights.iter().any(|l| matches!(l.shape, crate::scene::LightShape::Rays { .. }))
     }
@@ -250,6 +252,7 @@ impl Kernel<'_> {
         // Ray-set detectors: each arrival on their surfaces is kept (a push per arrival, off
         // unless asked for).
         let has_rays = !scene.ray_detectors.is_empty();
+        let smooth = geo.has_shading_normals();
         let mut texels = scores(if has_texels { scene.map_texels() } else { 0 });
         // Far-field detectors and surface spectra, likewise off unless asked for.
         let detectors = &scene.detectors;
@@ -606,8 +609,10 @@ impl Kernel<'_> {
                 let prep = &prepared[surface as usize];
                 // The tangent is read only for an anisotropic material (from the line `n` came from).
                 let tangent = || geo.tangent(prim);
-                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], n, tangent);
-                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, n, tangent));
+                // Smooth shading: the model's frame on the interpolated normal, sides on `n`.
+                let ns = if smooth { geo.shading_normal(prim, hit.b) } else { n };
+                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], ns, tangent).shaded(n);
+                let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, ns, tangent));
                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                     if bsdf.is_connectible() {
                         // f(wo, ω)·|cosθ_ω| toward the camera: the lanes' part in f64, the angular in f32.

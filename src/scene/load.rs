@@ -181,6 +181,8 @@ struct Shaped {
     tris: Vec<[DVec3; 3]>,
     /// Each triangle's surface tangent (`shapes::Triangles::tangents`).
     tangents: Vec<DVec3>,
+    /// A mesh's vertex normals per triangle (`shapes::Triangles::normals`).
+    normals: Option<Vec<Option<[DVec3; 3]>>>,
     light: Option<usize>,
     /// Resolution and frame (m) of its irradiance map, and a mesh's texture coordinates.
     map: Option<([usize; 2], Option<[DVec3; 3]>)>,
@@ -197,6 +199,8 @@ struct Assembled {
     tri_surface: Vec<u32>,
     /// Each triangle's unit surface tangent (zero where it has none).
     tri_tangent: Vec<Vec3A>,
+    /// Each triangle's unit vertex normals for smooth shading (zero where it is flat).
+    tri_shading: Vec<[Vec3A; 3]>,
     surfaces: Vec<Surface>,
     /// Each light's surface and its area (m²); None for a point light.
     light_surface: Vec<Option<(usize, f64)>>,
@@ -287,7 +291,8 @@ impl<'s> Loader<'s> {
         let mut assembled =
             self.single_precision_surfaces(shaped, origin_m, span_m, light_specs.len(), &mut warnings)?;
         let interfaces = self.join_shared_faces(&mut assembled, &mut materials, &mut material_medium)?;
-        let Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys } = assembled;
+        let Assembled { tris, tri_surface, tri_tangent, tri_shading, surfaces, light_surface, surface_keys } =
+            assembled;
         let (lights, light_lines) =
             self.lights(light_specs, &point_positions, ray_sets, &light_surface, origin_m, range)?;
         let camera = camera.map(|c| Camera { position: c.position - origin_m, look_at: c.look_at - origin_m, ..c });
@@ -349,8 +354,10 @@ impl<'s> Loader<'s> {
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
         self.check_ies_c0_planes(&lights, &tris, &tri_surface)?;
         let reference = self.reference(root, &surfaces)?;
-        let geometry = Geometry::build_with_tangents(tris, tri_surface, tri_tangent)
-            .map_err(|m| InputError::new(self.src.file, "", None, m))?;
+        let smooth = tri_shading.iter().any(|n| n[0] != Vec3A::ZERO);
+        let geometry =
+            Geometry::build_with_shading(tris, tri_surface, tri_tangent, if smooth { tri_shading } else { Vec::new() })
+                .map_err(|m| InputError::new(self.src.file, "", None, m))?;
         let camera_line = root.with("camera", |n| Ok(n.table()?.line_of_key("position")))?.unwrap_or(0);
         let sides: Vec<&MediumSides> = surfaces.iter().map(|s| &material_medium[s.material]).collect();
         let Dielectrics { volume, outside: surface_outside, inside: surface_inside } = self.check_dielectrics(
@@ -854,7 +861,7 @@ impl<'s> Loader<'s> {
         let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
-            let shapes::Triangles { tris: t, tangents, uvs } =
+            let shapes::Triangles { tris: t, tangents, uvs, normals } =
                 shapes::triangulate(&e.shape, self.src, &key, e.shape_line, warnings)?;
             let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
             if let (Some((_, None)), None) = (&e.map, &uvs) {
@@ -890,6 +897,7 @@ impl<'s> Loader<'s> {
                 material: e.material,
                 tris,
                 tangents,
+                normals,
                 light: None,
                 map: e.map.map(|(r, f)| (r, f.map(|f| f.map(|v| v * unit_m)))),
                 uvs,
@@ -955,7 +963,7 @@ impl<'s> Loader<'s> {
                     point_positions.push(None);
                 }
                 other => {
-                    let shapes::Triangles { tris: t, tangents, .. } =
+                    let shapes::Triangles { tris: t, tangents, normals, .. } =
                         shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
@@ -964,6 +972,7 @@ impl<'s> Loader<'s> {
                         material,
                         tris,
                         tangents,
+                        normals,
                         light: Some(i),
                         map: None,
                         uvs: None,
@@ -1107,6 +1116,8 @@ impl<'s> Loader<'s> {
             a.tri_surface.retain(|_| (!dropped[k], k += 1).0);
             k = 0;
             a.tri_tangent.retain(|_| (!dropped[k], k += 1).0);
+            k = 0;
+            a.tri_shading.retain(|_| (!dropped[k], k += 1).0);
         }
         Ok(interfaces)
     }
@@ -1124,6 +1135,7 @@ impl<'s> Loader<'s> {
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
         let mut tri_surface: Vec<u32> = Vec::new();
         let mut tri_tangent: Vec<Vec3A> = Vec::new();
+        let mut tri_shading: Vec<[Vec3A; 3]> = Vec::new();
         let mut surfaces: Vec<Surface> = Vec::new();
         let mut light_surface: Vec<Option<(usize, f64)>> = vec![None; light_count];
         let (mut texels, mut spectrum_bins) = (0, 0);
@@ -1139,6 +1151,15 @@ impl<'s> Loader<'s> {
                 tri_surface.push(id as u32);
                 // Unit in f64 first: a tangent scaled by a tiny or huge transform stays representable.
                 tri_tangent.push(sh.tangents[k].normalize_or_zero().as_vec3a());
+                let flat = [Vec3A::ZERO; 3];
+                let ng = (m[1] - m[0]).cross(m[2] - m[0]).normalize_or_zero();
+                // A normal the transform left without length shades nothing, and vertex normals
+                // that are the face's own (a CAD export's) change nothing: the triangle is flat.
+                let vn =
+                    sh.normals.as_ref().and_then(|n| n[k]).filter(|n| {
+                        n.iter().all(|v| v.length_squared() > 0.0) && n.iter().any(|v| v.dot(ng) < 1.0 - 1e-9)
+                    });
+                tri_shading.push(vn.map_or(flat, |n| n.map(|v| v.as_vec3a())));
             }
             let map = sh.map.map(|(resolution, frame)| {
                 let map = match (frame, &sh.uvs) {
@@ -1170,7 +1191,7 @@ impl<'s> Loader<'s> {
                 light_surface[l] = Some((id, area));
             }
         }
-        Ok(Assembled { tris, tri_surface, tri_tangent, surfaces, light_surface, surface_keys })
+        Ok(Assembled { tris, tri_surface, tri_tangent, tri_shading, surfaces, light_surface, surface_keys })
     }
 
     /// Each light at the recentred origin with its power in watts (from watts, lumens, or

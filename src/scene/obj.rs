@@ -1,5 +1,5 @@
-//! A small Wavefront OBJ reader: `v`, `vt` and `f` statements (polygons fan-triangulated,
-//! `v/vt/vn` and negative indices accepted); everything else is ignored. Written here rather than taken
+//! A small Wavefront OBJ reader: `v`, `vt`, `vn` and `f` statements (polygons fan-triangulated,
+//! `v/vt/vn`, `v//vn` and negative indices accepted); everything else is ignored. Written here rather than taken
 //! from tobj so that every malformed statement is reported with its line number.
 
 use std::path::Path;
@@ -14,6 +14,8 @@ pub struct ObjTriangle {
     pub verts: [DVec3; 3],
     pub uv: Option<[DVec2; 3]>,
     pub tangent: DVec3,
+    /// Unit vertex normals for smooth shading, when the face gives them (`v/vt/vn`, `v//vn`).
+    pub normals: Option<[DVec3; 3]>,
 }
 
 /// A triangle's surface tangent, the u axis of an anisotropic material: ∂P/∂u of the map from
@@ -49,6 +51,7 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
     let err = |line: usize, m: String| InputError::new(path, "", Some(line), m);
     let mut verts: Vec<DVec3> = Vec::new();
     let mut texcoords: Vec<DVec2> = Vec::new();
+    let mut normals: Vec<DVec3> = Vec::new();
     let mut tris: Vec<ObjTriangle> = Vec::new();
     let mut face = 0usize;
     // (line, face) of each zero-area triangle, skipped.
@@ -80,9 +83,23 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                 }
                 texcoords.push(DVec2::new(uv[0], uv.get(1).copied().unwrap_or(0.0)));
             }
+            Some("vn") => {
+                let xyz: Vec<f64> = words.take(3).map(|w| w.parse::<f64>().unwrap_or(f64::NAN)).collect();
+                let n = (xyz.len() == 3).then(|| DVec3::new(xyz[0], xyz[1], xyz[2]));
+                match n {
+                    Some(n) if n.is_finite() && n.length() > 0.0 => normals.push(n.normalize()),
+                    _ => {
+                        return Err(err(
+                            line_no,
+                            format!("malformed normal: expected `vn x y z`, finite and not all zero, found \"{line}\""),
+                        ))
+                    }
+                }
+            }
             Some("f") => {
                 let mut idx = Vec::new();
                 let mut tex: Vec<Option<usize>> = Vec::new();
+                let mut nor: Vec<Option<usize>> = Vec::new();
                 for w in words {
                     let mut parts = w.split('/');
                     let first = parts.next().unwrap_or("");
@@ -102,6 +119,22 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                         }
                     };
                     tex.push(t);
+                    let normal = match parts.next().filter(|t| !t.is_empty()) {
+                        None => None,
+                        Some(t) => {
+                            let k: i64 =
+                                t.parse().map_err(|_| err(line_no, format!("malformed normal index in \"{w}\"")))?;
+                            let resolved = if k > 0 { k - 1 } else { normals.len() as i64 + k };
+                            if k == 0 || resolved < 0 || resolved >= normals.len() as i64 {
+                                return Err(err(
+                                    line_no,
+                                    format!("normal index {k} refers to no `vn` ({} defined so far)", normals.len()),
+                                ));
+                            }
+                            Some(resolved as usize)
+                        }
+                    };
+                    nor.push(normal);
                     let k: i64 = first.parse().map_err(|_| err(line_no, format!("malformed face index \"{w}\"")))?;
                     // OBJ indices are 1-based; negative ones count back from the last vertex.
                     let resolved = if k > 0 { k - 1 } else { verts.len() as i64 + k };
@@ -124,8 +157,12 @@ pub fn read_obj(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                         (Some(a), Some(b), Some(c)) => Some([texcoords[a], texcoords[b], texcoords[c]]),
                         _ => None,
                     };
+                    let vn = match (nor[0], nor[j], nor[j + 1]) {
+                        (Some(a), Some(b), Some(c)) => Some([normals[a], normals[b], normals[c]]),
+                        _ => None,
+                    };
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
-                        tris.push(ObjTriangle { verts: t, uv, tangent: tangent(&t, uv, first_edge) });
+                        tris.push(ObjTriangle { verts: t, uv, tangent: tangent(&t, uv, first_edge), normals: vn });
                     } else {
                         flat.push((line_no, face));
                     }

@@ -197,6 +197,10 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
         return Err(at_line(header_lines, "the header's `vertex` element lacks x, y or z".into()));
     };
     let uv = slot(&["u", "s", "texture_u"]).zip(slot(&["v", "t", "texture_v"]));
+    let normal_slots = match (slot(&["nx"]), slot(&["ny"]), slot(&["nz"])) {
+        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+        _ => None,
+    };
     // A corrupt count must not allocate more than the file could hold (a byte a value at least).
     let left = bytes.len() - body_start;
     if elements.iter().any(|e| e.count > left) {
@@ -233,6 +237,7 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
     };
     let mut verts: Vec<DVec3> = Vec::new();
     let mut texcoords: Vec<DVec2> = Vec::new();
+    let mut normals: Vec<DVec3> = Vec::new();
     let mut tris = Vec::new();
     let mut skipped: Option<(String, usize)> = None;
     for (k, e) in elements.iter().enumerate() {
@@ -291,6 +296,17 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                     }
                     texcoords.push(t);
                 }
+                if let Some([a, b, c]) = normal_slots {
+                    let n = DVec3::new(values[a], values[b], values[c]);
+                    if !(n.is_finite() && n.length() > 0.0) {
+                        return Err(at_byte(format!(
+                            "vertex {} (at {}) has a normal (nx, ny, nz) that is zero or not finite",
+                            item + 1,
+                            body.place(0)
+                        )));
+                    }
+                    normals.push(n.normalize());
+                }
             } else if is_face {
                 if corners.len() < 3 {
                     return Err(at_byte(format!(
@@ -304,8 +320,10 @@ pub fn read_ply(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
                     let c = [corners[0], corners[j], corners[j + 1]];
                     let t = c.map(|i| verts[i]);
                     let tex = (!texcoords.is_empty()).then(|| c.map(|i| texcoords[i]));
+                    let normal = (!normals.is_empty()).then(|| c.map(|i| normals[i]));
                     if (t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0 {
-                        tris.push(ObjTriangle { verts: t, uv: tex, tangent: super::obj::tangent(&t, tex, first_edge) });
+                        let tangent = super::obj::tangent(&t, tex, first_edge);
+                        tris.push(ObjTriangle { verts: t, uv: tex, tangent, normals: normal });
                     } else {
                         skipped.get_or_insert_with(|| (format!("face {}", item + 1), 0)).1 += 1;
                     }

@@ -220,6 +220,9 @@ fn twice_area(t: &[DVec3; 3]) -> f64 {
 /// A shape's triangles in scene units, after its transform.
 pub struct Triangles {
     pub tris: Vec<[DVec3; 3]>,
+    /// A mesh's unit vertex normals per triangle, for smooth shading (None for a triangle
+    /// without them; None for a shape without any).
+    pub normals: Option<Vec<Option<[DVec3; 3]>>>,
     /// Each triangle's surface tangent, the u axis of an anisotropic material (`[αu, αv]`), not
     /// normalised and not yet projected into the triangle's plane (`Geometry` does both):
     /// * quad: its first edge, corners[1] − corners[0], on both halves;
@@ -248,6 +251,7 @@ pub fn triangulate(
     warnings: &mut Vec<String>,
 ) -> Result<Triangles, InputError> {
     let mut uvs: Option<Vec<[DVec2; 3]>> = None;
+    let mut normals: Option<Vec<Option<[DVec3; 3]>>> = None;
     let (raw, tangents, transform): (Vec<[DVec3; 3]>, Vec<DVec3>, &Transform) = match shape {
         ShapeSpec::Quad { corners, transform } => {
             let [a, b, c, d] = corners.map(DVec3::from);
@@ -310,6 +314,9 @@ pub fn triangulate(
                 e
             })?;
             uvs = faces.iter().map(|f| f.uv).collect();
+            if faces.iter().any(|f| f.normals.is_some()) {
+                normals = Some(faces.iter().map(|f| f.normals).collect());
+            }
             let tangents = faces.iter().map(|f| f.tangent).collect();
             (faces.into_iter().map(|f| f.verts).collect(), tangents, transform)
         }
@@ -331,7 +338,24 @@ pub fn triangulate(
     // (normals need the inverse transpose; tangents do not).
     let tangents = tangents.into_iter().map(|t| transform.linear * t).collect();
     let uvs = uvs.map(|u| u.into_iter().map(|t| if flip { [t[0], t[2], t[1]] } else { t }).collect());
-    Ok(Triangles { tris, tangents, uvs })
+    // Normals map by the inverse transpose of the linear part (they stay perpendicular to the
+    // moved surface), then unit again.
+    let normal_map = transform.linear.inverse().transpose();
+    let normals = normals.map(|all| {
+        all.into_iter()
+            .map(|n| {
+                n.map(|t| {
+                    let m = t.map(|v| (normal_map * v).normalize_or_zero());
+                    if flip {
+                        [m[0], m[2], m[1]]
+                    } else {
+                        m
+                    }
+                })
+            })
+            .collect()
+    });
+    Ok(Triangles { tris, tangents, uvs, normals })
 }
 
 /// Axis-aligned box, 12 triangles, normals outward.

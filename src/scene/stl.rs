@@ -56,7 +56,12 @@ pub fn read_stl(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ObjTriang
 
 /// The triangle `t` when it encloses area; its first edge is its tangent (no texture coordinates).
 fn triangle(t: [DVec3; 3]) -> Option<ObjTriangle> {
-    ((t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0).then(|| ObjTriangle { verts: t, uv: None, tangent: t[1] - t[0] })
+    ((t[1] - t[0]).cross(t[2] - t[0]).length() > 0.0).then(|| ObjTriangle {
+        verts: t,
+        uv: None,
+        tangent: t[1] - t[0],
+        normals: None,
+    })
 }
 
 /// (triangles, (where the first zero-area one is, how many)).

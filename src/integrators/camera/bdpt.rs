@@ -356,7 +356,9 @@ impl ImageKernel<'_> {
             v.lane_pdf = lane_pdf;
             v.pdf_fwd = to_area(pdf_dir, path[index - 1].p, &v);
             let tangent = || geo.tangent(hit.prim as usize);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n, tangent);
+            let ns = geo.shading_normal(hit.prim as usize, hit.b);
+            let bsdf =
+                Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, ns, tangent).shaded(n);
             if bsdf.is_connectible() {
                 v.bsdf = Some(bsdf);
             }

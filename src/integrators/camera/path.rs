@@ -129,7 +129,9 @@ impl ImageKernel<'_> {
 
             let (p, err) = geo.hit_point(&hit);
             let tangent = || geo.tangent(hit.prim as usize);
-            let bsdf = Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, n, tangent);
+            let ns = geo.shading_normal(hit.prim as usize, hit.b);
+            let bsdf =
+                Bsdf::new::<SPECTRAL>(material, &self.prepared[surface as usize], &wl.lambda, ns, tangent).shaded(n);
             if bsdf.is_absorber() {
                 break;
             }
