@@ -528,9 +528,10 @@ fn a_smooth_shaded_closed_low_poly_sphere_never_leaks() {
     let dir = common::temp_dir("smooth-leak");
     let obj = dir.join("sphere.obj");
     smooth_low_poly_sphere(&obj);
-    for (material, photons) in
-        [("type = \"lambertian\"\nreflectance = 0.3", 10_000_000u64), ("type = \"mirror\"\nreflectance = 0.5", 2_000_000)]
-    {
+    for (material, photons) in [
+        ("type = \"lambertian\"\nreflectance = 0.3", 10_000_000u64),
+        ("type = \"mirror\"\nreflectance = 0.5", 2_000_000),
+    ] {
         let toml = format!(
             "[materials.wall]\n{material}\n\n[[surfaces]]\nname = \"ball\"\nmaterial = \"wall\"\n\
              shape = {{ type = \"mesh\", file = \"{}\" }}\n\n[[lights]]\nname = \"lamp\"\n\

@@ -816,7 +816,12 @@ fn smooth_sphere_obj(center: [f64; 3], radius: f64, nu: usize, nv: usize, with_n
     }
     dirs.push([0.0, 0.0, -1.0]);
     for d in &dirs {
-        s.push_str(&format!("v {} {} {}\n", center[0] + radius * d[0], center[1] + radius * d[1], center[2] + radius * d[2]));
+        s.push_str(&format!(
+            "v {} {} {}\n",
+            center[0] + radius * d[0],
+            center[1] + radius * d[1],
+            center[2] + radius * d[2]
+        ));
         s.push_str(&format!("vn {} {} {}\n", d[0], d[1], d[2]));
     }
     let ring = |j: usize, i: usize| 2 + (j - 1) * nu + i % nu;
@@ -854,7 +859,10 @@ fn cornell_with_sphere(material: &str, smooth: bool, name: &str) -> String {
     );
     let toml = cornell(128);
     assert_eq!(toml.matches(&block).count(), 1, "the Cornell box's tall block");
-    let sphere = format!("name = \"sphere\"\nmaterial = \"sphere\"\nshape = {{ type = \"mesh\", file = \"{}\" }}", obj.display());
+    let sphere = format!(
+        "name = \"sphere\"\nmaterial = \"sphere\"\nshape = {{ type = \"mesh\", file = \"{}\" }}",
+        obj.display()
+    );
     toml.replace(&block, &sphere) + &format!("\n[materials.sphere]\n{material}\n")
 }
 
@@ -868,11 +876,8 @@ fn smooth_shaded_low_poly_sphere_light_path_and_bdpt_images_agree() {
     let toml = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", true, "smooth-sphere");
     assert_three_integrators_agree(&toml, 2_000_000, 21);
     // A glossy sphere: rough aluminium-like conductor reflects the box in the shading frame.
-    let glossy = cornell_with_sphere(
-        "type = \"conductor\"\nmetal = \"Al\"\nroughness = 0.25",
-        true,
-        "smooth-glossy-sphere",
-    );
+    let glossy =
+        cornell_with_sphere("type = \"conductor\"\nmetal = \"Al\"\nroughness = 0.25", true, "smooth-glossy-sphere");
     assert_three_integrators_agree(&glossy, 2_000_000, 22);
 }
 
