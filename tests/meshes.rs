@@ -385,3 +385,141 @@ fn malformed_obj_normals_name_the_file_and_the_line() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The box's 36 corners as f32 and 36 u16 indices: the binary data of a glTF buffer (positions
+/// at 0, indices after them), with its byte lengths.
+fn gltf_buffer(tris: &[[[f64; 3]; 3]], offset: [f64; 3], scale: f64) -> (Vec<u8>, usize, usize) {
+    let mut data = Vec::new();
+    for v in tris.iter().flatten() {
+        for i in 0..3 {
+            data.extend_from_slice(&(((v[i] - offset[i]) / scale) as f32).to_le_bytes());
+        }
+    }
+    let positions = data.len();
+    for k in 0..tris.len() * 3 {
+        data.extend_from_slice(&(k as u16).to_le_bytes());
+    }
+    (data.clone(), positions, data.len() - positions)
+}
+
+/// A glTF document over one buffer `uri` (None: a GLB's BIN chunk) holding `gltf_buffer`'s data,
+/// one node with `node` (extra JSON members: a transform) placing the mesh.
+fn gltf_json(uri: Option<&str>, len: usize, positions: usize, indices: usize, node: &str) -> String {
+    let uri = uri.map(|u| format!("\"uri\": \"{u}\", ")).unwrap_or_default();
+    let n = positions / 12;
+    format!(
+        r#"{{
+  "asset": {{ "version": "2.0" }},
+  "scene": 0,
+  "scenes": [ {{ "nodes": [0] }} ],
+  "nodes": [ {{ "mesh": 0{node} }} ],
+  "meshes": [ {{ "primitives": [ {{ "attributes": {{ "POSITION": 0 }}, "indices": 1 }} ] }} ],
+  "buffers": [ {{ {uri}"byteLength": {len} }} ],
+  "bufferViews": [
+    {{ "buffer": 0, "byteOffset": 0, "byteLength": {positions} }},
+    {{ "buffer": 0, "byteOffset": {positions}, "byteLength": {indices} }}
+  ],
+  "accessors": [
+    {{ "bufferView": 0, "componentType": 5126, "count": {n}, "type": "VEC3", "min": [-10, -10, -10], "max": [10, 10, 10] }},
+    {{ "bufferView": 1, "componentType": 5123, "count": {n}, "type": "SCALAR" }}
+  ]
+}}"#
+    )
+}
+
+fn base64(data: &[u8]) -> String {
+    const ABC: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in data.chunks(3) {
+        let b = [c[0], *c.get(1).unwrap_or(&0), *c.get(2).unwrap_or(&0)];
+        let v = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            s.push(if k <= c.len() { ABC[(v >> (18 - 6 * k) & 63) as usize] as char } else { '=' });
+        }
+    }
+    s
+}
+
+/// A GLB container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
+fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+    let mut j = json.as_bytes().to_vec();
+    j.resize(j.len().div_ceil(4) * 4, b' ');
+    let mut b = bin.to_vec();
+    b.resize(b.len().div_ceil(4) * 4, 0);
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = b"glTF".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
+#[test]
+fn gltf_files_give_the_triangles_of_the_same_obj() {
+    let dir = common::temp_dir("meshes-gltf");
+    let tris = box_triangles(1.0);
+    let obj = write(&dir, "box.obj", obj_text(&tris).as_bytes());
+    let reference = flux_bits(&common::run(&scene_with(&obj, "m"), 40_000, 3));
+    let (data, p, i) = gltf_buffer(&tris, [0.0; 3], 1.0);
+    write(&dir, "box data.bin", &data);
+    let uri = format!("data:application/octet-stream;base64,{}", base64(&data));
+    let variants: Vec<(&str, Vec<u8>)> = vec![
+        ("embedded.gltf", gltf_json(Some(&uri), data.len(), p, i, "").into_bytes()),
+        ("external.gltf", gltf_json(Some("box%20data.bin"), data.len(), p, i, "").into_bytes()),
+        ("binary.glb", glb(&gltf_json(None, data.len(), p, i, ""), &data)),
+        // The mesh drawn half size about (0.25, 0, 0.5), put back by its node's transform.
+        ("node.gltf", {
+            let (d, p, i) = gltf_buffer(&tris, [0.25, 0.0, 0.5], 2.0);
+            let uri = format!("data:application/octet-stream;base64,{}", base64(&d));
+            gltf_json(Some(&uri), d.len(), p, i, r#", "translation": [0.25, 0, 0.5], "scale": [2, 2, 2]"#).into_bytes()
+        }),
+    ];
+    for (name, bytes) in variants {
+        let file = write(&dir, name, &bytes);
+        assert_eq!(flux_bits(&common::run(&scene_with(&file, "m"), 40_000, 3)), reference, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn malformed_gltf_files_name_the_file_and_the_line_or_the_part() {
+    let dir = common::temp_dir("meshes-gltf-bad");
+    let tris = box_triangles(1.0);
+    let (data, p, i) = gltf_buffer(&tris, [0.0; 3], 1.0);
+    let uri = format!("data:application/octet-stream;base64,{}", base64(&data));
+    let good = gltf_json(Some(&uri), data.len(), p, i, "");
+    let mut nan = data.clone();
+    nan[4..8].copy_from_slice(&f32::NAN.to_le_bytes());
+    let nan_uri = format!("data:application/octet-stream;base64,{}", base64(&nan));
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("syntax.gltf", good.replacen("\"scenes\"", "scenes", 1).into_bytes(), "malformed glTF: line 4, column"),
+        ("noasset.gltf", good.replacen("\"asset\": { \"version\": \"2.0\" },", "", 1).into_bytes(), "malformed glTF: line"),
+        ("short.gltf", good.replacen(&format!("\"byteLength\": {} }}", data.len()), &format!("\"byteLength\": {} }}", data.len() + 8), 1).into_bytes(), "holds 504 bytes but declares byteLength 512"),
+        ("plain-uri.gltf", good.replacen("application/octet-stream;base64,", "text/plain,", 1).into_bytes(), "a data URI must be base64"),
+        ("bad64.gltf", good.replacen("base64,", "base64,*", 1).into_bytes(), "bad base64 at character 0"),
+        ("nofile.gltf", good.replacen(&uri, "missing.bin", 1).into_bytes(), "cannot read"),
+        ("accessor.gltf", good.replacen("\"POSITION\": 0", "\"POSITION\": 7", 1).into_bytes(), "malformed glTF"),
+        ("view.gltf", good.replacen("\"bufferView\": 1,", "\"bufferView\": 5,", 1).into_bytes(), "malformed glTF"),
+        ("noposition.gltf", good.replacen("\"POSITION\": 0", "\"TEXCOORD_1\": 0", 1).into_bytes(), "attributes[\"POSITION\"]: Missing data"),
+        ("nan.gltf", good.replacen(&uri, &nan_uri, 1).into_bytes(), "vertex 0 is not finite"),
+        ("points.gltf", good.replacen("\"indices\": 1", "\"indices\": 1, \"mode\": 0", 1).into_bytes(), "places no triangle"),
+        ("magic.glb", b"glTX\x02\0\0\0\x14\0\0\0\0\0\0\0JSON".to_vec(), "malformed glTF"),
+        ("cut.glb", glb(&good, &[])[..30].to_vec(), "malformed glTF"),
+    ];
+    assert!(cases.len() >= 10);
+    for (name, bytes, expected) in cases {
+        let file = write(&dir, name, &bytes);
+        let e = match photon::scene::load_str(Path::new("tests/inline.toml"), &scene_with(&file, "m")) {
+            Ok(_) => panic!("{name}: loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains(name), "{name}: the message should name the file: {e}");
+        assert!(e.contains(expected), "{name}: the message should say \"{expected}\": {e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

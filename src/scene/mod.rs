@@ -4,6 +4,7 @@
 pub mod catalog;
 mod doc;
 pub mod farfield;
+mod gltf;
 pub mod ies;
 pub mod ldt;
 mod load;

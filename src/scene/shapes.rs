@@ -463,12 +463,7 @@ fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTria
     match ext.as_deref() {
         Some("stl") => super::stl::read_stl(file, warnings),
         Some("ply") => super::ply::read_ply(file, warnings),
-        Some(e @ ("gltf" | "glb")) => Err(InputError::new(
-            file,
-            "",
-            None,
-            format!(".{e} meshes are not read yet: give the mesh as OBJ, STL or PLY"),
-        )),
+        Some("gltf" | "glb") => super::gltf::read_gltf(file, warnings),
         _ => obj::read_obj(file, warnings),
     }
 }
