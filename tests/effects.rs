@@ -17,6 +17,7 @@ fn info_lists_the_effects_each_bundled_scene_calls_for() {
         ("office", "grey", "diffuse_reflection"),
         ("luminaire", "grey", ""),
         ("reflector", "spectral", "spectral, specular_reflection, glossy_reflection"),
+        ("spotlight", "spectral", "spectral, glossy_reflection"),
         ("tissue_slab", "grey", "specular_reflection, refraction, absorbing_media, volume_scattering"),
         ("lsc_plate", "spectral", "spectral, specular_reflection, refraction, absorbing_media, fluorescence"),
         (
