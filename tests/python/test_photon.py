@@ -488,10 +488,15 @@ def test_keyboard_interrupt_stops_a_long_run_within_a_second():
 
     timer = threading.Timer(1.0, interrupt)
     timer.start()
-    # time=60 only bounds the test should the interrupt be lost (it hung a CI run once, never
-    # reproduced since): a lost interrupt then fails here instead of running for hours.
-    with pytest.raises(photon.RunInterrupted) as e:
-        scene.run(photons=10**10, seed=1, time=60)
+    # A runner started in the background by a shell without job control inherits SIGINT
+    # ignored, and Python then installs no KeyboardInterrupt handler: install it here. time=60
+    # bounds the test should the interrupt still be lost (a failure, not hours of running).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(photon.RunInterrupted) as e:
+            scene.run(photons=10**10, seed=1, time=60)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     stopped = time.monotonic() - sent[0]
     timer.join()
     assert stopped < 1.0, f"the run took {stopped:.2f} s to stop"
@@ -509,7 +514,9 @@ def test_keyboard_interrupt_from_another_process(tmp_path):
     script = tmp_path / "child.py"
     script.write_text(
         f"""
-import sys, time, photon
+import signal, sys, time, photon
+# Ctrl-C's default handler, even when this process inherited SIGINT ignored (a background job).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 scene = photon.load({str(SCENES / "cornell_box.toml")!r})
 print("ready", flush=True)
 try:
