@@ -366,7 +366,11 @@ fn malformed_obj_normals_name_the_file_and_the_line() {
         ("short.obj", format!("{tri}vn 0 0\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
         ("zero.obj", format!("{tri}vn 0 0 0\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
         ("nan.obj", format!("{tri}vn 0 nan 1\nf 1//1 2//1 3//1\n"), ":4: malformed normal"),
-        ("index.obj", format!("{tri}vn 0 0 1\nf 1//1 2//7 3//1\n"), ":5: normal index 7 refers to no `vn` (1 defined so far)"),
+        (
+            "index.obj",
+            format!("{tri}vn 0 0 1\nf 1//1 2//7 3//1\n"),
+            ":5: normal index 7 refers to no `vn` (1 defined so far)",
+        ),
         ("word.obj", format!("{tri}vn 0 0 1\nf 1//1 2//x 3//1\n"), ":5: malformed normal index"),
     ];
     for (name, text, expected) in cases {
@@ -378,9 +382,13 @@ fn malformed_obj_normals_name_the_file_and_the_line() {
         assert!(e.contains(name) && e.contains(expected), "{name}: expected \"{expected}\": {e}");
     }
     // Well-formed: `v//vn` and `v/vt/vn` both load.
-    for (name, text) in [("ok1.obj", format!("{tri}vn 0 0 1\nf 1//1 2//1 3//1\n")), ("ok2.obj", format!("{tri}vt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n"))] {
+    for (name, text) in [
+        ("ok1.obj", format!("{tri}vn 0 0 1\nf 1//1 2//1 3//1\n")),
+        ("ok2.obj", format!("{tri}vt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n")),
+    ] {
         let file = write(&dir, name, text.as_bytes());
-        photon::scene::load_str(Path::new("tests/inline.toml"), &scene_with(&file, "m")).unwrap_or_else(|e| panic!("{name}: {e}"));
+        photon::scene::load_str(Path::new("tests/inline.toml"), &scene_with(&file, "m"))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -497,16 +505,41 @@ fn malformed_gltf_files_name_the_file_and_the_line_or_the_part() {
     let nan_uri = format!("data:application/octet-stream;base64,{}", base64(&nan));
     let cases: Vec<(&str, Vec<u8>, &str)> = vec![
         ("syntax.gltf", good.replacen("\"scenes\"", "scenes", 1).into_bytes(), "malformed glTF: line 4, column"),
-        ("noasset.gltf", good.replacen("\"asset\": { \"version\": \"2.0\" },", "", 1).into_bytes(), "malformed glTF: line"),
-        ("short.gltf", good.replacen(&format!("\"byteLength\": {} }}", data.len()), &format!("\"byteLength\": {} }}", data.len() + 8), 1).into_bytes(), "holds 504 bytes but declares byteLength 512"),
-        ("plain-uri.gltf", good.replacen("application/octet-stream;base64,", "text/plain,", 1).into_bytes(), "a data URI must be base64"),
+        (
+            "noasset.gltf",
+            good.replacen("\"asset\": { \"version\": \"2.0\" },", "", 1).into_bytes(),
+            "malformed glTF: line",
+        ),
+        (
+            "short.gltf",
+            good.replacen(
+                &format!("\"byteLength\": {} }}", data.len()),
+                &format!("\"byteLength\": {} }}", data.len() + 8),
+                1,
+            )
+            .into_bytes(),
+            "holds 504 bytes but declares byteLength 512",
+        ),
+        (
+            "plain-uri.gltf",
+            good.replacen("application/octet-stream;base64,", "text/plain,", 1).into_bytes(),
+            "a data URI must be base64",
+        ),
         ("bad64.gltf", good.replacen("base64,", "base64,*", 1).into_bytes(), "bad base64 at character 0"),
         ("nofile.gltf", good.replacen(&uri, "missing.bin", 1).into_bytes(), "cannot read"),
         ("accessor.gltf", good.replacen("\"POSITION\": 0", "\"POSITION\": 7", 1).into_bytes(), "malformed glTF"),
         ("view.gltf", good.replacen("\"bufferView\": 1,", "\"bufferView\": 5,", 1).into_bytes(), "malformed glTF"),
-        ("noposition.gltf", good.replacen("\"POSITION\": 0", "\"TEXCOORD_1\": 0", 1).into_bytes(), "attributes[\"POSITION\"]: Missing data"),
+        (
+            "noposition.gltf",
+            good.replacen("\"POSITION\": 0", "\"TEXCOORD_1\": 0", 1).into_bytes(),
+            "attributes[\"POSITION\"]: Missing data",
+        ),
         ("nan.gltf", good.replacen(&uri, &nan_uri, 1).into_bytes(), "vertex 0 is not finite"),
-        ("points.gltf", good.replacen("\"indices\": 1", "\"indices\": 1, \"mode\": 0", 1).into_bytes(), "places no triangle"),
+        (
+            "points.gltf",
+            good.replacen("\"indices\": 1", "\"indices\": 1, \"mode\": 0", 1).into_bytes(),
+            "places no triangle",
+        ),
         ("magic.glb", b"glTX\x02\0\0\0\x14\0\0\0\0\0\0\0JSON".to_vec(), "malformed glTF"),
         ("cut.glb", glb(&good, &[])[..30].to_vec(), "malformed glTF"),
     ];

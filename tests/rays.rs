@@ -121,8 +121,12 @@ fn a_ray_set_reproduces_the_floor_map_of_its_source() {
     // 2. The set emitted again, and 3. the source alone, each onto the floor.
     let dir2 = temp_dir("rays-emitted");
     std::fs::copy(recorded.join("rays_window.npy"), dir2.join("window.npy")).unwrap();
-    let emitted =
-        floor_map(&run(&dir2, &scene("[[lights]]\nname = \"set\"\nshape = { type = \"rays\", file = \"window.npy\" }\n", false), photons, 2));
+    let emitted = floor_map(&run(
+        &dir2,
+        &scene("[[lights]]\nname = \"set\"\nshape = { type = \"rays\", file = \"window.npy\" }\n", false),
+        photons,
+        2,
+    ));
     let original = floor_map(&run(&dir, &scene(SOURCE, false), photons, 3));
     // Three independent errors: each run's own and the ray set's sampling of the source. The
     // maps are f32 (7 digits), far finer than their ~1.5 % noise.
@@ -217,7 +221,6 @@ fn malformed_ray_sets_exit_2_naming_the_byte() {
     }
 }
 
-
 #[test]
 fn a_ray_set_keeps_each_photons_wavelength_in_spectral_transport() {
     let dir = temp_dir("rays-spectral");
@@ -250,11 +253,15 @@ fn a_ray_light_takes_no_distribution_direction_or_radiance() {
     let dir = temp_dir("rays-keys");
     std::fs::write(dir.join("one.npy"), npy(&[[0.0, 0.0, 0.5, 0.0, 0.0, -1.0, 0.0, 1.0]])).unwrap();
     for (key, value) in [("distribution", "\"lambertian\""), ("direction", "[0, 0, -1]"), ("radiance", "1")] {
-        let light = format!("[[lights]]\nname = \"set\"\nshape = {{ type = \"rays\", file = \"one.npy\" }}\n{key} = {value}\n");
+        let light =
+            format!("[[lights]]\nname = \"set\"\nshape = {{ type = \"rays\", file = \"one.npy\" }}\n{key} = {value}\n");
         std::fs::write(dir.join("scene.toml"), scene(&light, false)).unwrap();
         let o = Command::new(BIN).args(["info", "scene.toml"]).current_dir(&dir).output().unwrap();
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{key}: {stderr}");
-        assert!(stderr.contains(&format!("`lights[0].{key}`")) && stderr.contains(&format!("drop `{key}`")), "{stderr}");
+        assert!(
+            stderr.contains(&format!("`lights[0].{key}`")) && stderr.contains(&format!("drop `{key}`")),
+            "{stderr}"
+        );
     }
 }

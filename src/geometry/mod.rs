@@ -4,13 +4,13 @@
 
 use std::time::Duration;
 
-// `UVec2` is named, unqualified, inside obvhs's `traverse!` macro.
-use glam::{UVec2, Vec3A, Vec3Swizzles};
+mod bvh;
+
+use bvh::Bvh8;
+use glam::{Vec3A, Vec3Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
-use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
-use obvhs::ray::Ray;
 use obvhs::{Boundable, BvhBuildParams};
 
 /// No primitive: used as "skip nothing".
@@ -123,7 +123,9 @@ pub struct Geometry {
     pub surface: Vec<u32>,
     /// Each triangle's index among its own surface's triangles (in the order they were given).
     pub local: Vec<u32>,
-    bvh: Option<CwBvh>,
+    bvh: Option<Bvh8>,
+    /// Whether the node test runs in AVX2 (`bvh::simd_available`); both give the same bits.
+    simd: bool,
     /// Each triangle's unit vertex normals for smooth shading, zero for a flat triangle; empty
     /// when no triangle has any (`shading_normal`).
     shading: Vec<[Vec3A; 3]>,
@@ -156,22 +158,34 @@ impl Geometry {
         assert_eq!(tris.len(), tangents.len());
         assert!(shading.is_empty() || shading.len() == tris.len());
         if tris.is_empty() {
-            return Ok(Geometry { tris: vec![], surface: vec![], local: vec![], bvh: None, shading: vec![] });
+            return Ok(Geometry {
+                tris: vec![],
+                surface: vec![],
+                local: vec![],
+                bvh: None,
+                simd: false,
+                shading: vec![],
+            });
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
-        // An 8-wide BVH with quantised child boxes (obvhs CWBVH): one 80-byte node per 8
-        // children, so a ray through a million triangles fetches fewer, smaller nodes and misses
-        // the caches far less (with the packing and prefetching below, ~1.9× faster there; the
-        // Cornell box ~1.1×). Small leaves: with up to 8 triangles per leaf a Cornell
+        // The tree's shape is obvhs's 8-wide CWBVH, expanded to full-precision boxes (`bvh`).
+        // Small leaves: with up to 8 triangles per leaf a Cornell
         // ray made about 10 triangle tests; with 3 (the most a CWBVH leaf holds) it traces as fast as
         // with 2, and faster than with 1.
         let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
-        let mut bvh = build_cwbvh(&padded, params, &mut Duration::default());
-        // The traversal's stack holds 32 node groups and drops pushes beyond that (silently
-        // skipping subtrees), so a deeper tree must not be traced. PLOC trees of real scenes are
+        let cw = build_cwbvh(&padded, params, &mut Duration::default());
+        // The traversal's stack holds 7 children per level for 31 levels, so a deeper tree must
+        // not be traced. PLOC trees of real scenes are
         // ~10 levels deep; only a pathological input gets there (a disk of 10^5 segments: 131
         // levels, its sliver triangles all overlapping at the centre).
-        let depth = cwbvh_depth(&bvh);
+        if tris.len() >= bvh::MAX_TRIANGLES {
+            return Err(format!(
+                "the scene has {} triangles, and photon traces at most {}",
+                tris.len(),
+                bvh::MAX_TRIANGLES - 1
+            ));
+        }
+        let depth = cwbvh_depth(&cw);
         if depth >= 32 {
             return Err(format!(
                 "the scene's {} triangles make a ray-tracing tree {depth} levels deep, and photon traces at most 31: \
@@ -180,7 +194,7 @@ impl Geometry {
                 tris.len()
             ));
         }
-        let order: Vec<usize> = bvh.primitive_indices.iter().map(|&i| i as usize).collect();
+        let order: Vec<usize> = cw.primitive_indices.iter().map(|&i| i as usize).collect();
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         // Triangles of one surface are given together, so each one's local index counts up.
         let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
@@ -194,9 +208,6 @@ impl Geometry {
             .collect();
         let local: Vec<u32> = order.iter().map(|&i| local_given[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
-        for (k, idx) in bvh.primitive_indices.iter_mut().enumerate() {
-            *idx = k as u32;
-        }
         let tris = verts
             .iter()
             .zip(&surface)
@@ -204,7 +215,7 @@ impl Geometry {
             .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
             .collect();
         let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
-        Ok(Geometry { tris, surface, local, bvh: Some(bvh), shading })
+        Ok(Geometry { tris, surface, local, bvh: Some(Bvh8::from_cwbvh(&cw)), simd: bvh::simd_available(), shading })
     }
 
     /// Whether any triangle has vertex normals for smooth shading.
@@ -292,90 +303,69 @@ impl Geometry {
     /// ray leaves: a flat triangle can never be hit again by a ray leaving it).
     #[inline]
     pub fn intersect(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
+            return unsafe { self.intersect_avx2(origin, dir, t_max, skip) };
+        }
+        self.intersect_with::<bvh::Portable>(origin, dir, t_max, skip)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn intersect_avx2(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
+        self.intersect_with::<bvh::Avx2>(origin, dir, t_max, skip)
+    }
+
+    #[inline(always)]
+    fn intersect_with<T: bvh::NodeTest>(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
-        let mut ray = Ray::new(origin, dir, 0.0, t_max);
         let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
-        let mut state = bvh.new_traversal(dir);
-        let mut node;
-        obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
-            let id = state.primitive_id;
-            if id != skip {
-                if let Some((t, b)) = sheared.intersect(ray.tmax, &self.verts(id as usize)) {
-                    if t < ray.tmax {
-                        ray.tmax = t;
-                        best = Some(Hit { t, prim: id, b });
+        bvh.closest::<T>(origin, dir, t_max, |first, count, mut t_max| {
+            for id in first..first + count {
+                if id != skip {
+                    if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
+                        if t < t_max {
+                            t_max = t;
+                            best = Some(Hit { t, prim: id, b });
+                        }
                     }
                 }
             }
+            t_max
         });
         best
     }
 
     /// True when nothing blocks the open segment from `origin` to `origin + t_max·dir`, ignoring
     /// the primitives `skip` (those the segment starts and ends on; NO_PRIM for none).
+    #[inline]
     pub fn unoccluded(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: [u32; 2]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.simd {
+            // SAFETY: `simd` is set only where the CPU has AVX2 and FMA.
+            return unsafe { self.unoccluded_avx2(origin, dir, t_max, skip) };
+        }
+        self.unoccluded_with::<bvh::Portable>(origin, dir, t_max, skip)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn unoccluded_avx2(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: [u32; 2]) -> bool {
+        self.unoccluded_with::<bvh::Avx2>(origin, dir, t_max, skip)
+    }
+
+    #[inline(always)]
+    fn unoccluded_with<T: bvh::NodeTest>(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: [u32; 2]) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
             return true;
         };
-        let ray = Ray::new(origin, dir, 0.0, t_max);
         let sheared = ShearedRay::new(origin, dir);
-        let mut state = bvh.new_traversal(dir);
-        let mut node;
-        let mut blocked = false;
-        // The macro's `break` would leave only the current leaf group; the label ends the traversal.
-        'traversal: {
-            obvhs::traverse!(bvh, node, state, self.intersect_node_prefetch(bvh, node, &ray, state.oct_inv4), {
-                let id = state.primitive_id;
-                if !skip.contains(&id) && sheared.intersect(ray.tmax, &self.verts(id as usize)).is_some() {
-                    blocked = true;
-                    break 'traversal;
-                }
-            });
-        }
-        !blocked
-    }
-
-    /// `intersect_node`, then a prefetch of what the traversal reads next: the hit inner
-    /// children's nodes and the hit leaves' triangles. In a large mesh those are cache misses;
-    /// started now, they overlap with the work on the current group (the million-triangle
-    /// benchmark traces ~3 % faster; the Cornell box is unchanged).
-    #[inline(always)]
-    fn intersect_node_prefetch(&self, bvh: &CwBvh, node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-        let hits = intersect_node(node, ray, oct_inv4);
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            // Every 64-byte line of an object (a node is 80 bytes; a triangle one aligned line).
-            let line = |p: *const i8, bytes: usize| {
-                let (first, last) = (p as usize & !63, (p as usize + bytes - 1) & !63);
-                for a in (first..=last).step_by(64) {
-                    // SAFETY: prefetching is only a hint and never faults.
-                    unsafe { _mm_prefetch(a as *const i8, _MM_HINT_T0) };
-                }
-            };
-            // Hit inner children, as the traversal finds them: bit 24 + (slot ^ octant) of the
-            // mask; a child is stored at child_base_idx + the number of inner children in lower slots.
-            let mut inner = hits >> 24;
-            while inner != 0 {
-                let slot = inner.trailing_zeros() ^ (oct_inv4 & 0xff);
-                inner &= inner - 1;
-                let below = node.imask as u32 & ((1u32 << slot) - 1);
-                if let Some(child) = bvh.nodes.get(node.child_base_idx as usize + below.count_ones() as usize) {
-                    line(child as *const CwBvhNode as *const i8, std::mem::size_of::<CwBvhNode>());
-                }
-            }
-            // Hit leaves' triangles: bit k of the low 24 is primitive primitive_base_idx + k.
-            let mut prims = hits & 0x00ff_ffff;
-            while prims != 0 {
-                let k = node.primitive_base_idx as usize + prims.trailing_zeros() as usize;
-                prims &= prims - 1;
-                if let Some(t) = self.tris.get(k) {
-                    line(t as *const PackedTriangle as *const i8, std::mem::size_of::<PackedTriangle>());
-                }
-            }
-        }
-        hits
+        !bvh.any::<T>(origin, dir, t_max, |first, count, t_max| {
+            (first..first + count)
+                .any(|id| !skip.contains(&id) && sheared.intersect(t_max, &self.verts(id as usize)).is_some())
+        })
     }
 
     /// True when nothing lies strictly between two points, each offset off its own surface.
@@ -445,92 +435,6 @@ fn cwbvh_depth(bvh: &CwBvh) -> usize {
         todo.extend((0..inner).map(|k| (node.child_base_idx as usize + k, d + 1)));
     }
     deepest
-}
-
-/// Which children of a CWBVH node the ray's segment [0, tmax] passes through, as the hit mask
-/// obvhs's traversal wants. This is obvhs's SSE node test (`CwBvhNode::intersect_ray_simd`) with
-/// one change: the near clip is 0, not its fixed 1e-4. In our metres that skipped every box
-/// ending within 0.1 mm ahead of the ray's origin, so photons leaving a wall near a corner
-/// missed the wall next to it and leaked out of closed rooms.
-#[inline(always)]
-fn intersect_node(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    let dir_inv = node.compute_extent() * ray.inv_direction;
-    let orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let byte = |x: u64, b: usize| ((x >> (b * 8)) as u32) & 0xff;
-    let hits = children_hit(node, ray, dir_inv, orig);
-    let mut hit_mask = 0u32;
-    for child in 0..8 {
-        if hits & (1 << child) != 0 {
-            hit_mask |= byte(child_bits8, child) << byte(bit_index8, child);
-        }
-    }
-    hit_mask
-}
-
-/// Bit c set when child c's box (quantised: q·extent + p) meets the ray's [0, tmax]. Which slab
-/// bound is the near one follows the sign of the inverse direction the distances are computed
-/// with, not of the direction: obvhs inverts a component of −0.0 to −1/ε, and testing
-/// `direction < 0` then swapped near and far and culled every box around the ray (half the
-/// photons of a collimated beam whose normal came out as (−0, 1, 0) went through the floor).
-/// A tiny component's inverse is clamped to ±1/ε; that can only make a box look hit, never missed.
-/// A NaN bound (0·∞, kept for safety) leaves the box uncut on that axis.
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32 {
-    use std::arch::x86_64::*;
-    // SAFETY: SSE2 is part of x86_64; the loads read the node's own arrays.
-    unsafe {
-        let quad = |v: &[u8; 8], i: usize| {
-            _mm_set_ps(v[i * 4 + 3] as f32, v[i * 4 + 2] as f32, v[i * 4 + 1] as f32, v[i * 4] as f32)
-        };
-        let mut hits = 0u32;
-        for i in 0..2 {
-            // _mm_max_ps/_mm_min_ps return their second operand when either is NaN: the running
-            // bound goes second, so a NaN slab bound is ignored.
-            let mut near = _mm_setzero_ps();
-            let mut far = _mm_set1_ps(ray.tmax);
-            for (lo, hi, inv, o, neg) in [
-                (&node.child_min_x, &node.child_max_x, dir_inv.x, orig.x, ray.inv_direction.x < 0.0),
-                (&node.child_min_y, &node.child_max_y, dir_inv.y, orig.y, ray.inv_direction.y < 0.0),
-                (&node.child_min_z, &node.child_max_z, dir_inv.z, orig.z, ray.inv_direction.z < 0.0),
-            ] {
-                let (inv, o) = (_mm_set1_ps(inv), _mm_set1_ps(o));
-                let (a, b) = (quad(lo, i), quad(hi, i));
-                let (a, b) = if neg { (b, a) } else { (a, b) };
-                near = _mm_max_ps(_mm_add_ps(_mm_mul_ps(a, inv), o), near);
-                far = _mm_min_ps(_mm_add_ps(_mm_mul_ps(b, inv), o), far);
-            }
-            hits |= (_mm_movemask_ps(_mm_cmple_ps(near, far)) as u32) << (4 * i);
-        }
-        hits
-    }
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-#[inline(always)]
-fn children_hit(node: &CwBvhNode, ray: &Ray, dir_inv: Vec3A, orig: Vec3A) -> u32 {
-    let neg = [ray.inv_direction.x < 0.0, ray.inv_direction.y < 0.0, ray.inv_direction.z < 0.0];
-    let axes = [
-        (&node.child_min_x, &node.child_max_x, dir_inv.x, orig.x),
-        (&node.child_min_y, &node.child_max_y, dir_inv.y, orig.y),
-        (&node.child_min_z, &node.child_max_z, dir_inv.z, orig.z),
-    ];
-    let mut hits = 0u32;
-    for child in 0..8 {
-        let (mut near, mut far) = (0.0f32, ray.tmax);
-        for (axis, &(lo, hi, inv, o)) in axes.iter().enumerate() {
-            let (a, b) = (lo[child] as f32 * inv + o, hi[child] as f32 * inv + o);
-            let (a, b) = if neg[axis] { (b, a) } else { (a, b) };
-            // f32::max/min ignore a NaN operand.
-            near = near.max(a);
-            far = far.min(b);
-        }
-        if near <= far {
-            hits |= 1 << child;
-        }
-    }
-    hits
 }
 
 /// Moves `p` off the surface along the normal, to the side `dir` leaves by, far enough that the
@@ -761,6 +665,62 @@ mod tests {
             let hits = intersect_triangle(o, d, f32::INFINITY, &a).is_some() as u32
                 + intersect_triangle(o, d, f32::INFINITY, &b).is_some() as u32;
             assert!(hits >= 1, "ray at {s} slipped through the shared edge");
+        }
+    }
+
+    /// The tree finds the brute-force closest hit of every ray (same triangle and t, or a tie at
+    /// equal t), and the AVX2 and portable node tests give the same bits.
+    #[test]
+    fn tree_matches_brute_force_and_both_node_tests_agree() {
+        use rand_xoshiro::rand_core::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        let mut u = || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        // 3000 random small triangles in a unit cube, plus a closed box of 12 around it, and
+        // axis-aligned rays (zero direction components) among random ones.
+        let mut tris = Vec::new();
+        for _ in 0..3000 {
+            let c = Vec3A::new(u(), u(), u());
+            tris.push([c, c + 0.05 * Vec3A::new(u(), u(), u()), c + 0.05 * Vec3A::new(u(), u(), u())]);
+        }
+        let corners = |i: usize| Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32) * 3.0 - 1.0;
+        for [a, b, c, d] in [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]] {
+            tris.push([corners(a), corners(b), corners(c)]);
+            tris.push([corners(a), corners(c), corners(d)]);
+        }
+        let n = tris.len();
+        let mut geo = Geometry::build(tris, (0..n as u32).collect()).unwrap();
+        let simd = geo.simd;
+        for k in 0..20_000 {
+            let o = Vec3A::new(u(), u(), u());
+            let d = match k % 4 {
+                0 => Vec3A::new(0.0, 0.0, if u() < 0.5 { 1.0 } else { -1.0 }),
+                1 => Vec3A::new(-0.0, 1.0, 0.0),
+                _ => (Vec3A::new(u(), u(), u()) - 0.5).normalize(),
+            };
+            let mut brute: Option<(f32, u32)> = None;
+            for prim in 0..n {
+                if let Some((t, _)) = intersect_triangle(o, d, f32::INFINITY, &geo.verts(prim)) {
+                    if brute.is_none_or(|(bt, _)| t < bt) {
+                        brute = Some((t, prim as u32));
+                    }
+                }
+            }
+            geo.simd = false;
+            let portable = geo.intersect(o, d, f32::INFINITY, NO_PRIM);
+            let portable_free = geo.unoccluded(o, d, 0.5, [NO_PRIM; 2]);
+            geo.simd = simd;
+            let fast = geo.intersect(o, d, f32::INFINITY, NO_PRIM);
+            assert_eq!(portable.map(|h| (h.t.to_bits(), h.prim)), fast.map(|h| (h.t.to_bits(), h.prim)), "ray {k}");
+            assert_eq!(portable_free, geo.unoccluded(o, d, 0.5, [NO_PRIM; 2]), "ray {k}");
+            let (bt, bp) = brute.expect("inside the closed box every ray hits");
+            let hit = fast.unwrap();
+            assert!(
+                hit.t == bt
+                    && (hit.prim == bp
+                        || intersect_triangle(o, d, f32::INFINITY, &geo.verts(hit.prim as usize)).unwrap().0 == bt),
+                "ray {k}: tree {hit:?}, brute ({bt}, {bp})"
+            );
+            assert_eq!(portable_free, !(bt < 0.5), "ray {k}: shadow test");
         }
     }
 
