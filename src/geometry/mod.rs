@@ -519,7 +519,7 @@ impl ShearedRay {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     pub fn intersect(&self, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
         let (o, kz, sx, sy, sz) = (self.o, self.kz, self.sx, self.sy, self.sz);
         let mut p0 = Self::permute_for(kz, tri[0] - o);
