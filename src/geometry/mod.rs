@@ -208,14 +208,15 @@ impl Geometry {
             .collect();
         let local: Vec<u32> = order.iter().map(|&i| local_given[i]).collect();
         let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
-        let tris = verts
+        let tris: Vec<PackedTriangle> = verts
             .iter()
             .zip(&surface)
             .zip(&order)
             .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
             .collect();
         let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
-        Ok(Geometry { tris, surface, local, bvh: Some(Bvh8::from_cwbvh(&cw)), simd: bvh::simd_available(), shading })
+        let tree = Some(Bvh8::from_cwbvh(&cw, std::mem::size_of_val(tris.as_slice())));
+        Ok(Geometry { tris, surface, local, bvh: tree, simd: bvh::simd_available(), shading })
     }
 
     /// Whether any triangle has vertex normals for smooth shading.
@@ -322,7 +323,7 @@ impl Geometry {
         let bvh = self.bvh.as_ref()?;
         let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
-        bvh.closest::<T>(origin, dir, t_max, |first, count, mut t_max| {
+        bvh.closest::<T>(origin, dir, t_max, |first| self.prefetch_triangle(first), |first, count, mut t_max| {
             for id in first..first + count {
                 if id != skip {
                     if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
@@ -362,10 +363,18 @@ impl Geometry {
             return true;
         };
         let sheared = ShearedRay::new(origin, dir);
-        !bvh.any::<T>(origin, dir, t_max, |first, count, t_max| {
+        !bvh.any::<T>(origin, dir, t_max, |first| self.prefetch_triangle(first), |first, count, t_max| {
             (first..first + count)
                 .any(|id| !skip.contains(&id) && sheared.intersect(t_max, &self.verts(id as usize)).is_some())
         })
+    }
+
+    /// Starts loading triangle `prim`'s cache line (one line each).
+    #[inline(always)]
+    fn prefetch_triangle(&self, prim: u32) {
+        if let Some(t) = self.tris.get(prim as usize) {
+            bvh::prefetch(t as *const PackedTriangle as *const u8);
+        }
     }
 
     /// True when nothing lies strictly between two points, each offset off its own surface.

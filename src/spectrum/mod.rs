@@ -27,7 +27,12 @@ impl<const N: usize> Lanes<N> {
     #[inline]
     pub fn eval<const SPECTRAL: bool>(spectrum: &Spectrum, lambda: &[f64; N]) -> Self {
         if SPECTRAL {
-            Lanes(lambda.map(|l| spectrum.eval(l)))
+            // The kind decided once for all lanes: a hit's hero lookups are one table's four.
+            match spectrum {
+                Spectrum::Constant(c) => Lanes::splat(*c),
+                Spectrum::Table(t) => Lanes(lambda.map(|l| t.eval(l))),
+                _ => Lanes(lambda.map(|l| spectrum.eval(l))),
+            }
         } else {
             Lanes::splat(spectrum.eval(f64::NAN))
         }
@@ -127,7 +132,7 @@ impl Table {
         Table { points, inv_step }
     }
 
-    #[inline]
+    #[inline(always)]
     fn eval(&self, x: f64) -> f64 {
         let p = &self.points;
         let Some(inv_step) = self.inv_step else { return table_eval(p, x) };
