@@ -1,6 +1,7 @@
-//! Triangles, the BVH (obvhs CWBVH) and robust ray queries: a watertight ray–triangle test and
-//! ray origins offset by the hit point's own floating-point error bound, so that scattering works
-//! at millimetre and kilometre scales alike with no fixed epsilon.
+//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes) and robust
+//! ray queries: a watertight ray–triangle test and ray origins offset by the hit point's own
+//! floating-point error bound, so that scattering works at millimetre and kilometre scales alike
+//! with no fixed epsilon.
 
 use std::time::Duration;
 
@@ -134,7 +135,8 @@ pub struct Geometry {
 impl Geometry {
     /// Builds the BVH and reorders triangles into its leaf order, so a BVH primitive id indexes
     /// the arrays directly.
-    /// Fails (with a message for the user) only on a tree too deep to trace.
+    /// Fails (with a message for the user) only on a tree too deep to trace, or more than 2^29
+    /// triangles.
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Result<Self, String> {
         let tangents = tris.iter().map(|t| t[1] - t[0]).collect();
         Self::build_with_tangents(tris, surface, tangents)
@@ -323,19 +325,25 @@ impl Geometry {
         let bvh = self.bvh.as_ref()?;
         let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
-        bvh.closest::<T>(origin, dir, t_max, |first| self.prefetch_triangle(first), |first, count, mut t_max| {
-            for id in first..first + count {
-                if id != skip {
-                    if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
-                        if t < t_max {
-                            t_max = t;
-                            best = Some(Hit { t, prim: id, b });
+        bvh.closest::<T>(
+            origin,
+            dir,
+            t_max,
+            |first| self.prefetch_triangle(first),
+            |first, count, mut t_max| {
+                for id in first..first + count {
+                    if id != skip {
+                        if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
+                            if t < t_max {
+                                t_max = t;
+                                best = Some(Hit { t, prim: id, b });
+                            }
                         }
                     }
                 }
-            }
-            t_max
-        });
+                t_max
+            },
+        );
         best
     }
 
@@ -363,10 +371,16 @@ impl Geometry {
             return true;
         };
         let sheared = ShearedRay::new(origin, dir);
-        !bvh.any::<T>(origin, dir, t_max, |first| self.prefetch_triangle(first), |first, count, t_max| {
-            (first..first + count)
-                .any(|id| !skip.contains(&id) && sheared.intersect(t_max, &self.verts(id as usize)).is_some())
-        })
+        !bvh.any::<T>(
+            origin,
+            dir,
+            t_max,
+            |first| self.prefetch_triangle(first),
+            |first, count, t_max| {
+                (first..first + count)
+                    .any(|id| !skip.contains(&id) && sheared.intersect(t_max, &self.verts(id as usize)).is_some())
+            },
+        )
     }
 
     /// Starts loading triangle `prim`'s cache line (one line each).
