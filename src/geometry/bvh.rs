@@ -15,9 +15,9 @@ use obvhs::cwbvh::CwBvh;
 
 /// No child in a slot.
 const EMPTY: u32 = u32::MAX;
-/// Marks a child reference as a leaf: `LEAF | ordinal`, its entry in `Bvh8::leaves`.
+/// Marks a child reference as a leaf: `LEAF | first << 2 | (count − 1)`, count 1..=4.
 const LEAF: u32 = 1 << 31;
-/// The most triangles a tree indexes (leaf ordinals and triangle ids stay below 2^31).
+/// The most triangles a tree can index in its leaves' 29-bit start.
 pub const MAX_TRIANGLES: usize = 1 << 29;
 /// Entries of the traversal stack: a tree of depth d pushes at most 7 per level below the root,
 /// and `Geometry::build` refuses trees of 32 levels or more (7·31 = 217).
@@ -35,8 +35,6 @@ pub struct Node8 {
 
 pub struct Bvh8 {
     nodes: Vec<Node8>,
-    /// Each leaf's first triangle and triangle count, by ordinal.
-    pub leaves: Vec<(u32, u32)>,
     /// Whether the tree and its triangles outgrow the L2 cache, where prefetching pays (in the
     /// 32-triangle Cornell box it cost ~3 %; in the 1.3 M-triangle sphere it saved ~15 %).
     large: bool,
@@ -59,7 +57,6 @@ impl Bvh8 {
     /// The same tree as `cw`, node for node (so its depth is `cw`'s), with each child box
     /// expanded to f32 planes that contain the quantised box.
     pub fn from_cwbvh(cw: &CwBvh, triangle_bytes: usize) -> Self {
-        let mut leaves = Vec::new();
         let nodes = cw
             .nodes
             .iter()
@@ -89,8 +86,7 @@ impl Bvh8 {
                     } else {
                         let count = (meta >> 5).count_ones();
                         let first = n.primitive_base_idx + (meta & 0x1f) as u32;
-                        leaves.push((first, count));
-                        LEAF | (leaves.len() - 1) as u32
+                        LEAF | first << 2 | (count - 1)
                     };
                     for plane in 0..6 {
                         let axis = plane / 2;
@@ -101,10 +97,10 @@ impl Bvh8 {
             })
             .collect::<Vec<Node8>>();
         let large = nodes.len() * std::mem::size_of::<Node8>() + triangle_bytes > 1 << 20;
-        Bvh8 { nodes, leaves, large }
+        Bvh8 { nodes, large }
     }
 
-    /// Closest-hit traversal: `leaf(ordinal, t_max)` tests a leaf's triangles and returns
+    /// Closest-hit traversal: `leaf(first, count, t_max)` tests a leaf's triangles and returns
     /// the new t_max (the nearest hit so far); children are visited nearest first and a stacked
     /// child is dropped once a hit lies before its box.
     #[inline(always)]
@@ -114,7 +110,7 @@ impl Bvh8 {
         dir: Vec3A,
         t_max: f32,
         prefetch_leaf: impl Fn(u32),
-        mut leaf: impl FnMut(u32, f32) -> f32,
+        mut leaf: impl FnMut(u32, u32, f32) -> f32,
     ) -> f32 {
         let ray = RayPlanes::new(origin, dir);
         // Uninitialised: zeroing 1.8 kB per ray cost 9 % of a Cornell ray. Entries below `sp`
@@ -159,7 +155,7 @@ impl Bvh8 {
                     continue 'walk;
                 }
             } else {
-                t_max = leaf(at & !LEAF, t_max);
+                t_max = leaf((at & !LEAF) >> 2, (at & 3) + 1, t_max);
             }
             loop {
                 if sp == 0 {
@@ -177,7 +173,7 @@ impl Bvh8 {
     }
 
     /// Starts loading what the traversal reads next: the box rows of the hit inner children and
-    /// (through `prefetch_leaf`, given a leaf's ordinal) the hit leaves' triangles. In a
+    /// (through `prefetch_leaf`, given a leaf's first triangle) the hit leaves' triangles. In a
     /// large mesh those are cache misses; started now they overlap with the work on this node.
     #[inline(always)]
     fn prefetch(&self, node: &Node8, mut mask: u32, prefetch_leaf: &impl Fn(u32)) {
@@ -188,7 +184,7 @@ impl Bvh8 {
             let c = node.child[mask.trailing_zeros() as usize];
             mask &= mask - 1;
             if c & LEAF != 0 {
-                prefetch_leaf(c & !LEAF);
+                prefetch_leaf((c & !LEAF) >> 2);
             } else if let Some(n) = self.nodes.get(c as usize) {
                 let p = n as *const Node8 as *const u8;
                 for line in 0..3 {
@@ -198,7 +194,7 @@ impl Bvh8 {
         }
     }
 
-    /// Any-hit traversal: true as soon as `leaf(ordinal, t_max)` reports a blocking hit.
+    /// Any-hit traversal: true as soon as `leaf(first, count, t_max)` reports a blocking hit.
     #[inline(always)]
     pub fn any<T: NodeTest>(
         &self,
@@ -206,7 +202,7 @@ impl Bvh8 {
         dir: Vec3A,
         t_max: f32,
         prefetch_leaf: impl Fn(u32),
-        mut leaf: impl FnMut(u32, f32) -> bool,
+        mut leaf: impl FnMut(u32, u32, f32) -> bool,
     ) -> bool {
         let ray = RayPlanes::new(origin, dir);
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
@@ -227,7 +223,7 @@ impl Bvh8 {
                     }
                     continue;
                 }
-            } else if leaf(at & !LEAF, t_max) {
+            } else if leaf((at & !LEAF) >> 2, (at & 3) + 1, t_max) {
                 return true;
             }
             if sp == 0 {

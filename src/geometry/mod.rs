@@ -6,11 +6,9 @@
 use std::time::Duration;
 
 mod bvh;
-mod leaf;
 
 use bvh::Bvh8;
 use glam::{Vec3A, Vec3Swizzles};
-use leaf::{LeafTris, TestLeaf};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
@@ -127,8 +125,6 @@ pub struct Geometry {
     /// Each triangle's index among its own surface's triangles (in the order they were given).
     pub local: Vec<u32>,
     bvh: Option<Bvh8>,
-    /// The BVH's leaves by ordinal, each laid out for one 4-lane triangle test.
-    leaves: Vec<LeafTris>,
     /// Whether the node test runs in AVX2 (`bvh::simd_available`); both give the same bits.
     simd: bool,
     /// Each triangle's unit vertex normals for smooth shading, zero for a flat triangle; empty
@@ -169,7 +165,6 @@ impl Geometry {
                 surface: vec![],
                 local: vec![],
                 bvh: None,
-                leaves: vec![],
                 simd: false,
                 shading: vec![],
             });
@@ -222,12 +217,8 @@ impl Geometry {
             .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
             .collect();
         let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
-        let mut tree = Bvh8::from_cwbvh(&cw, std::mem::size_of_val(tris.as_slice()));
-        let leaves = std::mem::take(&mut tree.leaves)
-            .into_iter()
-            .map(|(first, count)| LeafTris::new(first, &verts[first as usize..(first + count) as usize]))
-            .collect();
-        Ok(Geometry { tris, surface, local, bvh: Some(tree), leaves, simd: bvh::simd_available(), shading })
+        let tree = Some(Bvh8::from_cwbvh(&cw, std::mem::size_of_val(tris.as_slice())));
+        Ok(Geometry { tris, surface, local, bvh: tree, simd: bvh::simd_available(), shading })
     }
 
     /// Whether any triangle has vertex normals for smooth shading.
@@ -330,13 +321,7 @@ impl Geometry {
     }
 
     #[inline(always)]
-    fn intersect_with<T: bvh::NodeTest + TestLeaf>(
-        &self,
-        origin: Vec3A,
-        dir: Vec3A,
-        t_max: f32,
-        skip: u32,
-    ) -> Option<Hit> {
+    fn intersect_with<T: bvh::NodeTest>(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
         let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
@@ -344,22 +329,16 @@ impl Geometry {
             origin,
             dir,
             t_max,
-            |leaf| self.prefetch_leaf(leaf),
-            |leaf, mut t_max| {
-                let leaf = &self.leaves[leaf as usize];
-                let lanes = T::test(leaf, &sheared, t_max, skip);
-                // In triangle order against the running t_max, as one triangle after another.
-                for k in bits(lanes.candidates) {
-                    let c = Prepared {
-                        det: lanes.det[k],
-                        t_scaled: lanes.t_scaled[k],
-                        t: lanes.t[k],
-                        b: [lanes.b[0][k], lanes.b[1][k], lanes.b[2][k]],
-                        fallback: lanes.fallback & (1 << k) != 0,
-                    };
-                    if let Some((t, b)) = sheared.decide(&c, t_max, &leaf.verts(k)) {
-                        t_max = t;
-                        best = Some(Hit { t, prim: leaf.first + k as u32, b });
+            |first| self.prefetch_triangle(first),
+            |first, count, mut t_max| {
+                for id in first..first + count {
+                    if id != skip {
+                        if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
+                            if t < t_max {
+                                t_max = t;
+                                best = Some(Hit { t, prim: id, b });
+                            }
+                        }
                     }
                 }
                 t_max
@@ -387,13 +366,7 @@ impl Geometry {
     }
 
     #[inline(always)]
-    fn unoccluded_with<T: bvh::NodeTest + TestLeaf>(
-        &self,
-        origin: Vec3A,
-        dir: Vec3A,
-        t_max: f32,
-        skip: [u32; 2],
-    ) -> bool {
+    fn unoccluded_with<T: bvh::NodeTest>(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: [u32; 2]) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
             return true;
         };
@@ -402,28 +375,19 @@ impl Geometry {
             origin,
             dir,
             t_max,
-            |leaf| self.prefetch_leaf(leaf),
-            |leaf, t_max| {
-                let leaf = &self.leaves[leaf as usize];
-                let lanes = T::test(leaf, &sheared, t_max, skip[0]);
-                let second = skip[1].wrapping_sub(leaf.first);
-                let candidates = lanes.candidates & !(if second < 32 { 1 << second } else { 0 });
-                // A lane proven in f32 blocks; one that needs the f64 test is decided there.
-                candidates & !lanes.fallback != 0
-                    || bits(candidates & lanes.fallback)
-                        .any(|k| intersect_triangle_f64(origin, dir, t_max, &leaf.verts(k)).is_some())
+            |first| self.prefetch_triangle(first),
+            |first, count, t_max| {
+                (first..first + count)
+                    .any(|id| !skip.contains(&id) && sheared.intersect(t_max, &self.verts(id as usize)).is_some())
             },
         )
     }
 
-    /// Starts loading leaf `leaf`'s triangles (one 4-lane block).
+    /// Starts loading triangle `prim`'s cache line (one line each).
     #[inline(always)]
-    fn prefetch_leaf(&self, leaf: u32) {
-        if let Some(l) = self.leaves.get(leaf as usize) {
-            let p = l as *const LeafTris as *const u8;
-            for line in 0..3 {
-                bvh::prefetch(p.wrapping_add(64 * line));
-            }
+    fn prefetch_triangle(&self, prim: u32) {
+        if let Some(t) = self.tris.get(prim as usize) {
+            bvh::prefetch(t as *const PackedTriangle as *const u8);
         }
     }
 
@@ -481,18 +445,6 @@ impl Geometry {
         let err = gamma(7) * ((b0 * p0).abs() + (b1 * p1).abs() + (b2 * p2).abs());
         (p, err)
     }
-}
-
-/// The indices of the set bits of `mask`, lowest first.
-#[inline(always)]
-fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        (mask != 0).then(|| {
-            let k = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            k
-        })
-    })
 }
 
 /// Levels of a CWBVH (the root alone is 1).
@@ -567,24 +519,9 @@ pub struct ShearedRay {
     o: Vec3A,
     d: Vec3A,
     kz: usize,
-    /// The axes that become x, y and z (kx, ky, kz), and the origin in that order.
-    axes: [usize; 3],
-    o_perm: [f32; 3],
     sx: f32,
     sy: f32,
     sz: f32,
-}
-
-/// A triangle's part of the watertight test that does not depend on t_max: what is left to decide
-/// is whether t lies in (0, t_max) (`ShearedRay::within`) and, for `fallback`, the f64 test.
-#[derive(Clone, Copy, Debug)]
-pub struct Prepared {
-    pub det: f32,
-    pub t_scaled: f32,
-    pub t: f32,
-    pub b: [f32; 3],
-    /// The f32 error bound cannot prove t > 0.
-    pub fallback: bool,
 }
 
 impl ShearedRay {
@@ -592,9 +529,7 @@ impl ShearedRay {
     pub fn new(o: Vec3A, d: Vec3A) -> Self {
         let kz = max_dim(d.abs());
         let pd = Self::permute_for(kz, d);
-        let axes = [(kz + 1) % 3, (kz + 2) % 3, kz];
-        let o_perm = axes.map(|a| o[a]);
-        ShearedRay { o, d, kz, axes, o_perm, sx: -pd.x / pd.z, sy: -pd.y / pd.z, sz: 1.0 / pd.z }
+        ShearedRay { o, d, kz, sx: -pd.x / pd.z, sy: -pd.y / pd.z, sz: 1.0 / pd.z }
     }
 
     /// (v[kx], v[ky], v[kz]) with kx, ky the two axes after kz, cyclically.
@@ -607,40 +542,8 @@ impl ShearedRay {
         }
     }
 
-    /// Hit distance t and barycentrics for 0 < t < t_max.
     #[inline(always)]
     pub fn intersect(&self, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
-        let c = self.prepare(tri)?;
-        self.decide(&c, t_max, tri)
-    }
-
-    /// Whether a prepared hit lies before t_max (det·t = t_scaled, compared without dividing,
-    /// then t itself).
-    #[inline(always)]
-    pub fn within(det: f32, t_scaled: f32, t: f32, t_max: f32) -> bool {
-        !((det < 0.0 && t_scaled < t_max * det) || (det > 0.0 && t_scaled > t_max * det)) && t < t_max
-    }
-
-    /// The hit of a prepared triangle, if within t_max: where the f32 bound cannot prove t > 0,
-    /// decided again in f64.
-    #[inline(always)]
-    pub fn decide(&self, c: &Prepared, t_max: f32, tri: &[Vec3A; 3]) -> Option<(f32, [f32; 3])> {
-        if !Self::within(c.det, c.t_scaled, c.t, t_max) {
-            return None;
-        }
-        if c.fallback {
-            // Near a concave edge a genuine hit can sit closer than the f32 bound (it grows with
-            // the triangle's size), and rejecting it would let the photon leak: f64's bound is
-            // 2^29 times tighter.
-            return intersect_triangle_f64(self.o, self.d, t_max, tri);
-        }
-        Some((c.t, c.b))
-    }
-
-    /// The part of the test independent of t_max; None where the ray misses the triangle's
-    /// interior, it is seen edge-on (det = 0), or it lies behind the origin.
-    #[inline(always)]
-    pub fn prepare(&self, tri: &[Vec3A; 3]) -> Option<Prepared> {
         let (o, kz, sx, sy, sz) = (self.o, self.kz, self.sx, self.sy, self.sz);
         let mut p0 = Self::permute_for(kz, tri[0] - o);
         let mut p1 = Self::permute_for(kz, tri[1] - o);
@@ -666,11 +569,17 @@ impl ShearedRay {
         p1.z *= sz;
         p2.z *= sz;
         let t_scaled = e0 * p0.z + e1 * p1.z + e2 * p2.z;
-        if (det < 0.0 && t_scaled >= 0.0) || (det > 0.0 && t_scaled <= 0.0) {
+        if det < 0.0 && (t_scaled >= 0.0 || t_scaled < t_max * det) {
+            return None;
+        }
+        if det > 0.0 && (t_scaled <= 0.0 || t_scaled > t_max * det) {
             return None;
         }
         let inv_det = 1.0 / det;
         let t = t_scaled * inv_det;
+        if !(t < t_max) {
+            return None;
+        }
 
         // Conservative bound on t's error, so that t > 0 is certain (pbrt-v4 §6.8.4).
         let max_zt = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
@@ -682,7 +591,13 @@ impl ShearedRay {
         let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
         let max_e = e0.abs().max(e1.abs()).max(e2.abs());
         let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
-        Some(Prepared { det, t_scaled, t, b: [e0 * inv_det, e1 * inv_det, e2 * inv_det], fallback: t <= delta_t })
+        if t <= delta_t {
+            // The f32 bound cannot prove t > 0. Near a concave edge a genuine hit can sit closer than
+            // that bound (it grows with the triangle's size), and rejecting it would let the photon
+            // leak: decide again in f64, whose bound is 2^29 times tighter.
+            return intersect_triangle_f64(o, self.d, t_max, tri);
+        }
+        Some((t, [e0 * inv_det, e1 * inv_det, e2 * inv_det]))
     }
 }
 
