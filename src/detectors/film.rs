@@ -136,8 +136,18 @@ pub struct Splat {
     pub xyz: [f32; 3],
 }
 
-/// How many splats ahead `Film::merge` prefetches pixel sums.
+/// How many pixels ahead `Film::flush` prefetches pixel sums.
 const MERGE_PREFETCH_DISTANCE: usize = 16;
+
+/// Batches `Film::merge` holds before adding their pixel sums, all at once. A batch touches about
+/// a fifth of a 512² film's pixels (two cache lines of sums each), spread over the whole film;
+/// added one batch at a time, the film (33 MB at 512²) streams through memory once a batch.
+/// Added 16 at a time, tile by tile, each tile's sums stay in the L2 cache while every held batch
+/// adds its share: a third of the traffic (Cornell box 512², light-traced, 2·10⁶ photons: the
+/// merge thread's time 0.26–0.32 s → 0.15–0.21 s; 32 or 64 gained no more).
+const MERGE_GROUP: usize = 16;
+/// Pixels per tile of `Film::flush`: 2048 pixels' sums are 256 kB.
+const FLUSH_TILE: usize = 2048;
 
 /// A hint to bring `x`'s cache line in; it never faults and changes no result.
 #[inline(always)]
@@ -171,6 +181,7 @@ pub struct FilmBatch {
 }
 
 struct Digest {
+    /// Touched pixels in increasing order, each with its sums.
     pixels: Vec<(u32, [f64; 4])>,
     image_y_sq_over_n: f64,
     film_batches: u64,
@@ -262,6 +273,9 @@ pub struct Film {
     photons: u64,
     film_batches: u64,
     camera: Option<CameraPart>,
+    /// Batches' per-pixel sums merged but not yet added to `pixels` (`merge`, `flush`); every
+    /// read of `pixels` requires it empty.
+    pending: Vec<Vec<(u32, [f64; 4])>>,
 }
 
 /// One pixel's exact sums: X, Y, Z, and Y's square term.
@@ -359,6 +373,7 @@ impl Film {
             photons: 0,
             film_batches: 0,
             camera: None,
+            pending: Vec::new(),
         }
     }
 
@@ -367,8 +382,10 @@ impl Film {
         self.camera.as_ref().map(|c| c.count.iter().copied().min().unwrap_or(0))
     }
 
-    /// Adds one transport batch of `photons` photons, in any order of batches.
-    pub fn merge(&mut self, b: &FilmBatch, photons: u64) {
+    /// Adds one transport batch of `photons` photons, in any order of batches. Its pixel sums are
+    /// taken from `b` and held until `MERGE_GROUP` batches are (`flush`); read the film through
+    /// `flushed`, or after `flush`.
+    pub fn merge(&mut self, b: &mut FilmBatch, photons: u64) {
         if !b.samples.is_empty() {
             let pixels = self.width * self.height;
             let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
@@ -402,29 +419,60 @@ impl Film {
                 }
             }
         }
-        let owned;
-        let digest = match &b.digest {
+        let digest = match b.digest.take() {
             Some(d) => d,
             None => {
-                // Not digested by its worker (a batch built by hand): digest a copy.
-                let mut copy = FilmBatch { splats: b.splats.clone(), ..FilmBatch::default() };
-                copy.digest(photons);
-                owned = copy.digest;
-                owned.as_ref().expect("just digested")
+                // Not digested by its worker (a batch built by hand): digest it here.
+                b.digest(photons);
+                b.digest.take().expect("just digested")
             }
         };
-        // One exact addition per touched pixel and batch, in pixel order (the cache's best case).
-        for (i, &(p, v)) in digest.pixels.iter().enumerate() {
-            if let Some(&(ahead, _)) = digest.pixels.get(i + MERGE_PREFETCH_DISTANCE) {
-                // A pixel's four sums span two cache lines.
-                prefetch(&self.pixels[ahead as usize].0[0]);
-                prefetch(&self.pixels[ahead as usize].0[3]);
-            }
-            self.pixels[p as usize].add(v);
-        }
         self.image_y_sq_over_n.add(digest.image_y_sq_over_n);
         self.film_batches += digest.film_batches;
         self.photons += photons;
+        // Exact sums take their values in any order: held now, added with others (`flush`).
+        self.pending.push(digest.pixels);
+        if self.pending.len() >= MERGE_GROUP {
+            self.flush();
+        }
+    }
+
+    /// Adds the held batches' pixel sums: tile by tile, each held batch adding its pixels in the
+    /// tile (its list is in pixel order), so a tile's sums are fetched from memory once for all.
+    pub fn flush(&mut self) {
+        if self.pending.is_empty() {
+            return;
+        }
+        let mut at = vec![0usize; self.pending.len()];
+        let pixels = self.pixels.len();
+        for tile_end in (FLUSH_TILE..pixels + FLUSH_TILE).step_by(FLUSH_TILE) {
+            for (list, at) in self.pending.iter().zip(at.iter_mut()) {
+                while let Some(&(p, v)) = list.get(*at) {
+                    if p as usize >= tile_end {
+                        break;
+                    }
+                    if let Some(&(ahead, _)) = list.get(*at + MERGE_PREFETCH_DISTANCE) {
+                        // A pixel's four sums span two cache lines.
+                        prefetch(&self.pixels[ahead as usize].0[0]);
+                        prefetch(&self.pixels[ahead as usize].0[3]);
+                    }
+                    self.pixels[p as usize].add(v);
+                    *at += 1;
+                }
+            }
+        }
+        self.pending.clear();
+    }
+
+    /// The film with every merged batch added (`flush`), for reading.
+    pub fn flushed(&mut self) -> &Film {
+        self.flush();
+        self
+    }
+
+    /// Reads of the pixel sums come after `flush`: a held batch would be missing from them.
+    fn assert_flushed(&self) {
+        assert!(self.pending.is_empty(), "the film is read with merged batches not yet added: call flush first");
     }
 
     /// Adds another film's batches (a partial run's, another rank's): the same camera.
@@ -432,6 +480,8 @@ impl Film {
         if (o.width, o.height) != (self.width, self.height) {
             return Err(format!("films of {}×{} and {}×{} pixels", self.width, self.height, o.width, o.height));
         }
+        self.assert_flushed();
+        o.assert_flushed();
         for (a, b) in self.pixels.iter_mut().zip(&o.pixels) {
             a.add_sums(b);
         }
@@ -452,6 +502,7 @@ impl Film {
 
     /// The exact state, for a state file or another rank.
     pub fn state(&self) -> FilmState {
+        self.assert_flushed();
         FilmState {
             width: self.width,
             height: self.height,
@@ -497,6 +548,7 @@ impl Film {
     /// Mean Y over the image and its standard error, from the spread of whole-image batch sums
     /// (pixels are correlated: one photon splats into several).
     pub fn mean_y(&self, emitted_w: f64) -> (f64, f64) {
+        self.assert_flushed();
         let pixels = (self.width * self.height) as f64;
         let n = self.photons.max(1) as f64;
         let total: f64 = self.pixels.iter().map(|p| p.0[1].value()).sum();
@@ -515,6 +567,7 @@ impl Film {
 
     /// The image in watts: each photon carries Φ_total/N; Y_var from the film batches' spread.
     pub fn image(&self, emitted_w: f64) -> Image {
+        self.assert_flushed();
         let n = self.photons.max(1) as f64;
         let w = emitted_w / n;
         let pixels = self.width * self.height;
@@ -545,5 +598,55 @@ impl Film {
             y_var[p] = var as f32;
         }
         Image { width: self.width, height: self.height, xyz, rgb, y_var }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand_xoshiro::rand_core::{Rng, SeedableRng};
+
+    fn batch(rng: &mut rand_xoshiro::Xoshiro256PlusPlus, pixels: u32, photons: u32) -> FilmBatch {
+        let mut b = FilmBatch::default();
+        for photon in 0..photons {
+            b.photon = photon;
+            for _ in 0..rng.next_u32() % 4 {
+                let xyz = Vec3A::new(rng.next_u32() as f32, rng.next_u32() as f32, 1.0) * 1e-9;
+                b.add((rng.next_u32() % pixels) as usize, xyz);
+            }
+        }
+        b
+    }
+
+    /// Batches held and added in groups, tile by tile (`flush`), give the film bit for bit that
+    /// adding each batch at once gives, for a batch count that is no multiple of the group and
+    /// a film that is no multiple of the tile.
+    #[test]
+    fn grouped_merges_give_the_same_sums() {
+        let (width, height) = (97, 61);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+        let batches: Vec<FilmBatch> = (0..2 * MERGE_GROUP + 5).map(|_| batch(&mut rng, 97 * 61, 3000)).collect();
+        let (mut grouped, mut single) = (Film::new(width, height), Film::new(width, height));
+        for b in &batches {
+            // Undigested copies: `merge` digests each itself.
+            let copy = || FilmBatch { splats: b.splats.clone(), ..FilmBatch::default() };
+            grouped.merge(&mut copy(), 3000);
+            single.merge(&mut copy(), 3000);
+            single.flush();
+        }
+        let (a, b) = (grouped.flushed().state(), single.state());
+        assert!(a.pixels == b.pixels && a.image_y_sq_over_n == b.image_y_sq_over_n);
+        assert_eq!((a.photons, a.film_batches), (b.photons, b.film_batches));
+        assert!(a.pixels.iter().filter(|p| p.0[1] != ExactSum::default()).count() > 5000);
+    }
+
+    /// A read with held batches is refused rather than missing them.
+    #[test]
+    #[should_panic(expected = "call flush first")]
+    fn reading_before_flush_panics() {
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(6);
+        let mut film = Film::new(8, 8);
+        film.merge(&mut batch(&mut rng, 64, 100), 100);
+        film.image(1.0);
     }
 }

@@ -128,7 +128,8 @@ pub fn converge(
     let mut next = BATCH_PHOTONS;
     let result = simulate_observed(scene, &run_opts, &chosen, interrupt, &mut |p| {
         if p.tallies.photons >= next {
-            snaps.push(snapshot(p.tallies, p.film, p.emitted_w, p.seconds(), &run_opts));
+            let seconds = p.seconds();
+            snaps.push(snapshot(p.tallies, p.film.map(|f| f.flushed()), p.emitted_w, seconds, &run_opts));
             next *= 2;
         }
     })?;

@@ -226,7 +226,8 @@ pub fn simulate(
 /// The state of a run after one more batch was merged, for observers such as `converge`.
 pub struct Progress<'a> {
     pub tallies: &'a Tallies,
-    pub film: Option<&'a Film>,
+    /// The film so far: `flushed()` before reading it.
+    pub film: Option<&'a mut Film>,
     pub emitted_w: f64,
     pub threads: usize,
 }
@@ -428,7 +429,7 @@ pub fn simulate_controlled(
                     break 'merge;
                 }
             }
-            while let Some((t, f)) = pending.remove(&want) {
+            while let Some((t, mut f)) = pending.remove(&want) {
                 tallies.merge(&t);
                 for r in &t.rays {
                     ray_counts[r.detector as usize] += 1;
@@ -441,14 +442,14 @@ pub fn simulate_controlled(
                     ));
                     break 'merge;
                 }
-                if let (Some(film), Some(f)) = (film.as_mut(), &f) {
+                if let (Some(film), Some(f)) = (film.as_mut(), f.as_mut()) {
                     film.merge(f, t.photons);
                 }
                 want += 1;
                 merged.store(want, Ordering::Release);
                 if let Some(reason) = observer(Progress {
                     tallies: &tallies,
-                    film: film.as_ref(),
+                    film: film.as_mut(),
                     emitted_w: emitter.total_power_w,
                     threads,
                 }) {
@@ -487,6 +488,9 @@ pub fn simulate_controlled(
     });
     if let Some(e) = failure {
         return Err(Error::Other(e));
+    }
+    if let Some(f) = film.as_mut() {
+        f.flush();
     }
     if let Some(p) = progress {
         p.bar.finish_and_clear();
@@ -578,20 +582,20 @@ pub fn choose_estimator(
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;
         while total.photons < PILOT_PHOTONS && total.counters.rays + total.counters.shadow_rays < PILOT_MAX_RAYS {
-            let parts: Vec<_> = (0..PILOT_PARTS)
+            let mut parts: Vec<_> = (0..PILOT_PARTS)
                 .into_par_iter()
                 .map(|k| kernel.trace_batch(u64::MAX - (round * PILOT_PARTS + k), part))
                 .collect();
-            for (t, f) in &parts {
+            for (t, f) in &mut parts {
                 total.merge(t);
-                if let (Some(film), Some(f)) = (film.as_mut(), f) {
+                if let (Some(film), Some(f)) = (film.as_mut(), f.as_mut()) {
                     film.merge(f, t.photons);
                 }
             }
             round += 1;
         }
         // The light-traced image's relative variance per photon: N × (pixel noise)².
-        let image = film.map(|f| f.image(1.0).pixel_rel_error().powi(2) * total.photons as f64);
+        let image = film.map(|mut f| f.flushed().image(1.0).pixel_rel_error().powi(2) * total.photons as f64);
         (total, image.filter(|v| v.is_finite()))
     };
     let (analog, expected) = rayon::join(|| pilot(Estimator::Analog), || pilot(Estimator::Expected));
