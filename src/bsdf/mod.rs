@@ -452,7 +452,11 @@ impl<'a, const N: usize> Bsdf<'a, N> {
         // Sampled alike at every lane: the sample's weight w is the throughput; the expected-value
         // estimator weights by it (lobe probability 1 relative to the shared density) and the
         // analog one survives the first absorption a and then min(1, w/a).
-        let shared = |w: Lanes<N>, a: f64| EventTerms { factor: w, albedo: w, analog: Lanes(w.0.map(|x| x.min(a))) };
+        let shared = |w: Lanes<N>, a: f64| EventTerms {
+            factor: w,
+            albedo: w,
+            analog: Lanes(crate::spectrum::map_array(w.0, |x| x.min(a))),
+        };
         match &self.model {
             Model::Absorber => exact(Lanes::ZERO, Lanes::ZERO),
             Model::Lambertian(m) => exact(m.lobe_factor(lobe), m.albedo()),

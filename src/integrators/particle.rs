@@ -17,7 +17,7 @@ use crate::sampling::Sampler;
 use crate::scene::map::SurfaceMap;
 use crate::scene::plane::WorkPlane;
 use crate::scene::{Material, Scene};
-use crate::spectrum::photometry;
+use crate::spectrum::{map_array, photometry};
 
 /// How absorption is estimated.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
@@ -825,11 +825,11 @@ impl Hero {
         });
         Hero {
             lambda,
-            power: lambda.map(|l| emitter.spectral_power(birth.light, l)),
+            power: map_array(lambda, |l| emitter.spectral_power(birth.light, l)),
             throughput: [1.0; 4],
             probability: [1.0; 4],
             technique_weight: [1.0; 4],
-            colour: lambda.map(|l| emitter.colour(l)),
+            colour: map_array(lambda, |l| emitter.colour(l)),
         }
     }
 

@@ -226,7 +226,7 @@ impl Emitter {
     #[inline]
     pub fn share_lanes<const SPECTRAL: bool, const N: usize>(&self, light: usize, lambda: &[f64; N]) -> Lanes<N> {
         if SPECTRAL {
-            Lanes(lambda.map(|l| self.spectral_share(light, l)))
+            Lanes(crate::spectrum::map_array(*lambda, |l| self.spectral_share(light, l)))
         } else {
             Lanes::ONE
         }

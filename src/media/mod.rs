@@ -24,7 +24,7 @@ pub fn absorption(material: &Material) -> Option<&Spectrum> {
 #[inline]
 pub fn transmittance<const SPECTRAL: bool, const N: usize>(alpha: &Spectrum, lambda: &[f64; N], t: f64) -> Lanes<N> {
     let a = Lanes::eval::<SPECTRAL>(alpha, lambda);
-    Lanes(a.0.map(|a| (-a * t).exp()))
+    Lanes(crate::spectrum::map_array(a.0, |a| (-a * t).exp()))
 }
 
 /// The medium after a path scattered at dielectric `surface` (unit normal `n`) into unit `wi`:
