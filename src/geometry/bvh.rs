@@ -104,7 +104,7 @@ impl Bvh8 {
     /// the new t_max (the nearest hit so far); children are visited nearest first and a stacked
     /// child is dropped once a hit lies before its box.
     #[inline(always)]
-    pub fn closest<T: NodeTest>(
+    pub fn closest<T: NodeTest, const STILL: bool>(
         &self,
         origin: Vec3A,
         dir: Vec3A,
@@ -122,7 +122,7 @@ impl Bvh8 {
         'walk: loop {
             if at & LEAF == 0 {
                 let node = &self.nodes[at as usize];
-                let (mut mask, near) = T::hits(node, &ray, t_max);
+                let (mut mask, near) = T::hits::<STILL>(node, &ray, t_max);
                 self.prefetch(node, mask, &prefetch_leaf);
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
@@ -196,7 +196,7 @@ impl Bvh8 {
 
     /// Any-hit traversal: true as soon as `leaf(first, count, t_max)` reports a blocking hit.
     #[inline(always)]
-    pub fn any<T: NodeTest>(
+    pub fn any<T: NodeTest, const STILL: bool>(
         &self,
         origin: Vec3A,
         dir: Vec3A,
@@ -211,7 +211,7 @@ impl Bvh8 {
         loop {
             if at & LEAF == 0 {
                 let node = &self.nodes[at as usize];
-                let (mut mask, _) = T::hits(node, &ray, t_max);
+                let (mut mask, _) = T::hits::<STILL>(node, &ray, t_max);
                 self.prefetch(node, mask, &prefetch_leaf);
                 if mask != 0 {
                     at = node.child[mask.trailing_zeros() as usize];
@@ -239,29 +239,63 @@ impl Bvh8 {
 /// A ray's part of the slab test, once per ray: 1/d, o/d (so each plane costs one FMA,
 /// t = plane·(1/d) − o/d), and which plane row is the near one on each axis (the low plane where
 /// 1/d ≥ 0, the sign bit of 1/d deciding, so −0 is consistently negative).
-/// A zero component gives 1/d = ±∞ and t = NaN or ±∞: a NaN leaves that axis uncut (the max/min
-/// below keep their running bound), ±∞ is the exact answer. Nothing is clamped: clamping 1/d
+/// A zero component gives 1/d = ±∞ and t = plane·∞ − o·∞ = NaN, which leaves that axis uncut
+/// (the max/min below keep their running bound). The ray never leaves its origin's coordinate
+/// on such an axis, so there a box is kept only where it contains that coordinate
+/// (`still_mask`): uncut, an axis-aligned ray (a collimated beam straight down) visited every
+/// box its height range met, 100× the work in the glass scene. Nothing is clamped: clamping 1/d
 /// shortens the far distance and can cull a box the ray runs along.
 pub struct RayPlanes {
     inv: [f32; 3],
     o_inv: [f32; 3],
     near: [usize; 3],
+    /// Bit a set where d's component a is ±0.
+    still: u32,
+    o: Vec3A,
+}
+
+/// Whether a ray along `d` stays in a plane of constant coordinate (a zero component): the
+/// traversal's `STILL` for it.
+#[inline(always)]
+pub fn is_still(d: Vec3A) -> bool {
+    d.cmpeq(Vec3A::ZERO).any()
 }
 
 impl RayPlanes {
     #[inline(always)]
     fn new(o: Vec3A, d: Vec3A) -> Self {
         let inv = [1.0 / d.x, 1.0 / d.y, 1.0 / d.z];
-        let o = o.to_array();
+        let still = d.cmpeq(Vec3A::ZERO).bitmask();
+        let oa = o.to_array();
         let near = [0, 1, 2].map(|a| 2 * a + inv[a].is_sign_negative() as usize);
-        RayPlanes { inv, o_inv: [0, 1, 2].map(|a| o[a] * inv[a]), near }
+        RayPlanes { inv, o_inv: [0, 1, 2].map(|a| oa[a] * inv[a]), near, still, o }
+    }
+
+    /// The children whose boxes contain the origin's coordinate on every axis the ray does not
+    /// move along (bounds included: a ray along a face stays in).
+    #[inline(always)]
+    fn still_mask(&self, node: &Node8) -> u32 {
+        let o = self.o.to_array();
+        let mut mask = 0xff;
+        for a in 0..3 {
+            if self.still & (1 << a) != 0 {
+                for k in 0..8 {
+                    let inside = node.planes[2 * a][k] <= o[a] && node.planes[2 * a + 1][k] >= o[a];
+                    mask &= !((!inside as u32) << k);
+                }
+            }
+        }
+        mask
     }
 }
 
 /// Which of a node's children the ray's [0, t_max] meets (bit k for child k), and each child's
 /// entry distance.
+/// `STILL` must be `is_still(d)` of the ray: with it the boxes are also kept to those that
+/// contain the origin's coordinate on the axes the ray does not move along (`still_mask`).
+/// Chosen once a ray by the caller, so the usual ray's traversal has no test for it.
 pub trait NodeTest {
-    fn hits(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]);
+    fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]);
 }
 
 /// The test lane by lane, in the AVX2 test's exact arithmetic.
@@ -269,7 +303,7 @@ pub struct Portable;
 
 impl NodeTest for Portable {
     #[inline(always)]
-    fn hits(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
+    fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
         let mut near = [0f32; 8];
         let mut mask = 0u32;
         for (k, entry) in near.iter_mut().enumerate() {
@@ -284,6 +318,9 @@ impl NodeTest for Portable {
             *entry = lo;
             mask |= ((lo <= hi) as u32) << k;
         }
+        if STILL {
+            mask &= ray.still_mask(node);
+        }
         (mask, near)
     }
 }
@@ -295,7 +332,7 @@ pub struct Avx2;
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
     #[inline(always)]
-    fn hits(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
+    fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
         use std::arch::x86_64::*;
         // SAFETY: called only from `#[target_feature(enable = "avx2,fma")]` functions, reached
         // only when the CPU reports both; the rows are 32-byte aligned (the node is 64-aligned).
@@ -311,7 +348,10 @@ impl NodeTest for Avx2 {
                 lo = _mm256_max_ps(tn, lo);
                 hi = _mm256_min_ps(tf, hi);
             }
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
+            let mut mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(lo, hi)) as u32;
+            if STILL {
+                mask &= ray.still_mask(node);
+            }
             let mut near = [0f32; 8];
             _mm256_storeu_ps(near.as_mut_ptr(), lo);
             (mask, near)
