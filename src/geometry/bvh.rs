@@ -104,7 +104,7 @@ impl Bvh8 {
     /// the new t_max (the nearest hit so far); children are visited nearest first and a stacked
     /// child is dropped once a hit lies before its box.
     #[inline(always)]
-    pub fn closest<T: NodeTest, const STILL: bool>(
+    pub fn closest<T: NodeTest>(
         &self,
         origin: Vec3A,
         dir: Vec3A,
@@ -113,6 +113,22 @@ impl Bvh8 {
         mut leaf: impl FnMut(u32, u32, f32) -> f32,
     ) -> f32 {
         let ray = RayPlanes::new(origin, dir);
+        // Chosen once a ray, so the usual ray's walk has no test for still axes.
+        if ray.still != 0 {
+            self.closest_walk::<T, true>(&ray, t_max, &prefetch_leaf, &mut leaf)
+        } else {
+            self.closest_walk::<T, false>(&ray, t_max, &prefetch_leaf, &mut leaf)
+        }
+    }
+
+    #[inline(always)]
+    fn closest_walk<T: NodeTest, const STILL: bool>(
+        &self,
+        ray: &RayPlanes,
+        t_max: f32,
+        prefetch_leaf: &impl Fn(u32),
+        leaf: &mut impl FnMut(u32, u32, f32) -> f32,
+    ) -> f32 {
         // Uninitialised: zeroing 1.8 kB per ray cost 9 % of a Cornell ray. Entries below `sp`
         // are always written.
         let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
@@ -122,8 +138,8 @@ impl Bvh8 {
         'walk: loop {
             if at & LEAF == 0 {
                 let node = &self.nodes[at as usize];
-                let (mut mask, near) = T::hits::<STILL>(node, &ray, t_max);
-                self.prefetch(node, mask, &prefetch_leaf);
+                let (mut mask, near) = T::hits::<STILL>(node, ray, t_max);
+                self.prefetch(node, mask, prefetch_leaf);
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
@@ -196,7 +212,7 @@ impl Bvh8 {
 
     /// Any-hit traversal: true as soon as `leaf(first, count, t_max)` reports a blocking hit.
     #[inline(always)]
-    pub fn any<T: NodeTest, const STILL: bool>(
+    pub fn any<T: NodeTest>(
         &self,
         origin: Vec3A,
         dir: Vec3A,
@@ -205,14 +221,29 @@ impl Bvh8 {
         mut leaf: impl FnMut(u32, u32, f32) -> bool,
     ) -> bool {
         let ray = RayPlanes::new(origin, dir);
+        if ray.still != 0 {
+            self.any_walk::<T, true>(&ray, t_max, &prefetch_leaf, &mut leaf)
+        } else {
+            self.any_walk::<T, false>(&ray, t_max, &prefetch_leaf, &mut leaf)
+        }
+    }
+
+    #[inline(always)]
+    fn any_walk<T: NodeTest, const STILL: bool>(
+        &self,
+        ray: &RayPlanes,
+        t_max: f32,
+        prefetch_leaf: &impl Fn(u32),
+        leaf: &mut impl FnMut(u32, u32, f32) -> bool,
+    ) -> bool {
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];
         let mut sp = 0usize;
         let mut at = 0u32;
         loop {
             if at & LEAF == 0 {
                 let node = &self.nodes[at as usize];
-                let (mut mask, _) = T::hits::<STILL>(node, &ray, t_max);
-                self.prefetch(node, mask, &prefetch_leaf);
+                let (mut mask, _) = T::hits::<STILL>(node, ray, t_max);
+                self.prefetch(node, mask, prefetch_leaf);
                 if mask != 0 {
                     at = node.child[mask.trailing_zeros() as usize];
                     mask &= mask - 1;
@@ -254,13 +285,6 @@ pub struct RayPlanes {
     o: Vec3A,
 }
 
-/// Whether a ray along `d` stays in a plane of constant coordinate (a zero component): the
-/// traversal's `STILL` for it.
-#[inline(always)]
-pub fn is_still(d: Vec3A) -> bool {
-    d.cmpeq(Vec3A::ZERO).any()
-}
-
 impl RayPlanes {
     #[inline(always)]
     fn new(o: Vec3A, d: Vec3A) -> Self {
@@ -291,9 +315,8 @@ impl RayPlanes {
 
 /// Which of a node's children the ray's [0, t_max] meets (bit k for child k), and each child's
 /// entry distance.
-/// `STILL` must be `is_still(d)` of the ray: with it the boxes are also kept to those that
+/// With `STILL` (a ray with a zero direction component) the boxes are also kept to those that
 /// contain the origin's coordinate on the axes the ray does not move along (`still_mask`).
-/// Chosen once a ray by the caller, so the usual ray's traversal has no test for it.
 pub trait NodeTest {
     fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]);
 }
