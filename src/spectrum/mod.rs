@@ -137,33 +137,55 @@ pub enum Spectrum {
 /// others by binary search.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Table {
-    pub points: Vec<(f64, f64)>,
-    /// 1/step when the wavelengths are equally spaced.
-    inv_step: Option<f64>,
+    /// Private: `eval` relies on `uniform` describing exactly these points.
+    points: Vec<(f64, f64)>,
+    /// The grid, when the wavelengths are equally spaced.
+    uniform: Option<Grid>,
+}
+
+/// A uniform table's first wavelength, 1/step, and its last point's index (as a float too, so
+/// a lookup converts no index from usize: that conversion and the bounds checks were half of a
+/// lookup's instructions).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Grid {
+    x0: f64,
+    inv_step: f64,
+    last: u32,
+    last_f: f64,
 }
 
 impl Table {
     pub fn new(points: Vec<(f64, f64)>) -> Self {
-        let uniform = points.len() >= 2 && {
+        let uniform = points.len() >= 2 && points.len() <= u32::MAX as usize && {
             let step = points[1].0 - points[0].0;
             points.windows(2).all(|w| ((w[1].0 - w[0].0) - step).abs() <= 1e-9 * step)
         };
-        let inv_step = uniform.then(|| (points.len() - 1) as f64 / (points[points.len() - 1].0 - points[0].0));
-        Table { points, inv_step }
+        let uniform = uniform.then(|| {
+            let last = points.len() - 1;
+            Grid {
+                x0: points[0].0,
+                inv_step: last as f64 / (points[last].0 - points[0].0),
+                last: last as u32,
+                last_f: last as f64,
+            }
+        });
+        Table { points, uniform }
     }
 
     #[inline(always)]
     fn eval(&self, x: f64) -> f64 {
         let p = &self.points;
-        let Some(inv_step) = self.inv_step else { return table_eval(p, x) };
-        let last = p.len() - 1;
-        let f = (x - p[0].0) * inv_step;
-        if !(f >= 0.0 && f <= last as f64) {
+        let Some(g) = self.uniform else { return table_eval(p, x) };
+        let f = (x - g.x0) * g.inv_step;
+        if !(f >= 0.0 && f <= g.last_f) {
             return 0.0;
         }
-        let i = (f as usize).min(last - 1);
+        // SAFETY: 0 ≤ f ≤ last < 2^32, so the truncation is in range.
+        let i = unsafe { f.to_int_unchecked::<u32>() }.min(g.last - 1);
         let t = f - i as f64;
-        p[i].1 + (p[i + 1].1 - p[i].1) * t
+        // SAFETY: i + 1 ≤ last = points.len() − 1 (a uniform table has at least two points).
+        let (lo, hi) = unsafe { (p.get_unchecked(i as usize).1, p.get_unchecked(i as usize + 1).1) };
+        lo + (hi - lo) * t
     }
 }
 
@@ -515,11 +537,17 @@ mod tests {
     fn uniform_and_irregular_tables_interpolate_alike() {
         let pts = vec![(400.0, 0.2), (404.0, 0.5), (408.0, 0.1), (412.0, 0.9)];
         let uniform = Table::new(pts.clone());
-        assert!(uniform.inv_step.is_some());
-        for k in 0..=130 {
+        assert!(uniform.uniform.is_some());
+        // Past both ends too, where both are zero.
+        for k in 0..=160 {
             let x = 398.0 + 0.1 * k as f64;
             assert!((uniform.eval(x) - table_eval(&pts, x)).abs() < 1e-12, "at {x}");
         }
+        // The end points exactly (the last one is the top of the last segment), and no number.
+        assert_eq!((uniform.eval(400.0), uniform.eval(412.0), uniform.eval(f64::NAN)), (0.2, 0.9, 0.0));
+        let two = Table::new(vec![(400.0, 1.0), (500.0, 3.0)]);
+        assert!(two.uniform.is_some());
+        assert_eq!((two.eval(400.0), two.eval(450.0), two.eval(500.0), two.eval(500.1)), (1.0, 2.0, 3.0, 0.0));
     }
 
     #[test]
