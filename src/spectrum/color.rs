@@ -13,6 +13,9 @@ const CIE_CSV: &str = include_str!("../../spectra/cie1931_2deg_xyz.csv");
 pub struct Cmf {
     first_nm: f64,
     rows: Vec<[f64; 3]>,
+    /// The last row's index, and as f64: `at` then converts no index from usize.
+    last: u32,
+    last_f: f64,
 }
 
 pub fn cmf() -> &'static Cmf {
@@ -28,7 +31,9 @@ pub fn cmf() -> &'static Cmf {
             assert_eq!(v[0], first_nm + rows.len() as f64, "CIE table must be on a 1 nm grid");
             rows.push([v[1], v[2], v[3]]);
         }
-        Cmf { first_nm, rows }
+        assert!(rows.len() >= 2, "CIE table has rows");
+        let last = rows.len() - 1;
+        Cmf { first_nm, rows, last: last as u32, last_f: last as f64 }
     })
 }
 
@@ -37,12 +42,14 @@ impl Cmf {
     #[inline]
     pub fn at(&self, lambda_nm: f64) -> [f64; 3] {
         let x = lambda_nm - self.first_nm;
-        if !(x >= 0.0) || x > (self.rows.len() - 1) as f64 {
+        if !(x >= 0.0) || x > self.last_f {
             return [0.0; 3];
         }
-        let i = (x as usize).min(self.rows.len() - 2);
+        // SAFETY: 0 ≤ x ≤ last < 2^32.
+        let i = unsafe { x.to_int_unchecked::<u32>() }.min(self.last - 1);
         let f = x - i as f64;
-        let (a, b) = (self.rows[i], self.rows[i + 1]);
+        // SAFETY: i + 1 ≤ last < rows.len().
+        let (a, b) = unsafe { (*self.rows.get_unchecked(i as usize), *self.rows.get_unchecked(i as usize + 1)) };
         [a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2])]
     }
 
