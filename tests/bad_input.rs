@@ -6,7 +6,7 @@
 //! failure has exactly one cause.
 
 use std::fs;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
@@ -50,20 +50,15 @@ fn at(line: usize, key: &str) -> String {
     format!("error: {{scene}}:{line}: `{key}`: ")
 }
 
-/// A fresh, empty folder for one case.
-fn case_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("photon-bad-input-{name}-{}", std::process::id()));
-    if dir.exists() {
-        fs::remove_dir_all(&dir).unwrap();
-    }
-    fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh, empty folder for one case (removed when the test passes).
+fn case_dir(name: &str) -> common::TempDir {
+    common::temp_dir(&format!("bad-input-{name}"))
 }
 
 /// Writes `scene.toml` (unless `toml` is None) and `extra_files` into a fresh folder and runs
 /// `photon` with `args`, where `{scene}`, `{out}` and `{dir}` stand for the scene file, the output
 /// folder and the case's folder.
-fn photon(name: &str, toml: Option<&str>, extra_files: &[(&str, &str)], args: &[&str]) -> (PathBuf, Output) {
+fn photon(name: &str, toml: Option<&str>, extra_files: &[(&str, &str)], args: &[&str]) -> (common::TempDir, Output) {
     let dir = case_dir(name);
     let scene = dir.join("scene.toml");
     if let Some(text) = toml {

@@ -4,10 +4,10 @@
 //! so P(|z| > 6) ≈ 2e-9 per pixel keeps the whole image's false-failure chance below 1e-5.
 
 mod common;
-use common::{cornell_toml, temp_dir};
+use common::{cornell_toml, temp_dir, TempDir};
 
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 struct Exr {
@@ -38,7 +38,7 @@ fn read_exr(path: &Path) -> Exr {
 }
 
 /// Writes `toml` to a scene file, runs it, and returns the image and output folder.
-fn render(name: &str, toml: &str, args: &[&str]) -> (Exr, PathBuf) {
+fn render(name: &str, toml: &str, args: &[&str]) -> (Exr, TempDir) {
     let dir = temp_dir(name);
     let scene = dir.join("scene.toml");
     std::fs::write(&scene, toml).unwrap();
@@ -178,7 +178,7 @@ fn white_plate_under_collimated_light_reads_rho_e_over_pi() {
     }
 }
 
-fn cornell(args: &[&str], name: &str) -> (Exr, PathBuf) {
+fn cornell(args: &[&str], name: &str) -> (Exr, TempDir) {
     let toml = cornell_toml().replace("resolution = [512, 512]", "resolution = [64, 64]");
     render(name, &toml, args)
 }

@@ -17,12 +17,12 @@ const BIN: &str = env!("CARGO_BIN_EXE_photon");
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 /// A fresh folder for one test.
-fn dir(name: &str) -> PathBuf {
+fn dir(name: &str) -> common::TempDir {
     common::temp_dir(&format!("hardening-{name}"))
 }
 
 /// Writes `toml` as `scene.toml` in a fresh folder; returns the folder and the scene path.
-fn scene_file(name: &str, toml: &str) -> (PathBuf, PathBuf) {
+fn scene_file(name: &str, toml: &str) -> (common::TempDir, PathBuf) {
     let d = dir(name);
     let scene = d.join("scene.toml");
     fs::write(&scene, toml).unwrap();
@@ -87,7 +87,7 @@ fn camera_resolutions_whose_product_overflows_are_refused() {
         let toml = format!(
             "{BASE}\n[camera]\nposition = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\nfov_deg = 40\nresolution = {res}\n"
         );
-        let (_, scene) = scene_file("resolution", &toml);
+        let (_dir, scene) = scene_file("resolution", &toml);
         assert_bad(&photon(&["info", s(&scene)]), &["`camera.resolution`", "pixels"]);
     }
 }
@@ -157,7 +157,7 @@ fn non_positive_or_non_finite_references_are_bad_input() {
         assert_bad(&o, &["--reference"]);
     }
     let toml = format!("{BASE}\n[reference]\nsurface = \"floor\"\nincident_w = 0\n");
-    let (_, scene) = scene_file("reference-zero", &toml);
+    let (_dir, scene) = scene_file("reference-zero", &toml);
     assert_bad(&photon(&["info", s(&scene)]), &["`reference.incident_w`"]);
 }
 
@@ -248,11 +248,11 @@ fn a_far_point_light_is_blamed_not_the_surface_it_unbalances() {
     let toml = format!(
         "{BASE}\n[[lights]]\nname = \"far\"\nshape = {{ type = \"point\", position = [1e20, 1, 0.5] }}\npower_w = 1\n"
     );
-    let (_, scene) = scene_file("far-point", &toml);
+    let (_dir, scene) = scene_file("far-point", &toml);
     assert_bad(&photon(&["info", s(&scene)]), &["`lights[1].shape`"]);
     // Within range but far enough to leave the floor unresolvable in f32: the scene's extent is named.
     let toml = toml.replace("1e20", "1e13");
-    let (_, scene) = scene_file("far-point-2", &toml);
+    let (_dir, scene) = scene_file("far-point-2", &toml);
     assert_bad(&photon(&["info", s(&scene)]), &["from the centre of the scene"]);
 }
 
@@ -261,7 +261,7 @@ fn a_camera_far_out_is_blamed_for_its_position() {
     // Before: blamed `camera.up`.
     let toml =
         format!("{BASE}\n[camera]\nposition = [-1e300, -1e300, -1e300]\nlook_at = [0.5, 0.5, 0]\nfov_deg = 40\n");
-    let (_, scene) = scene_file("far-camera", &toml);
+    let (_dir, scene) = scene_file("far-camera", &toml);
     assert_bad(&photon(&["info", s(&scene)]), &["`camera.position`"]);
 }
 
@@ -360,7 +360,7 @@ fn unsupported_dielectric_geometry_is_refused() {
         ),
     ];
     for (name, body, needle) in cases {
-        let (_, scene) = scene_file(&format!("glass-{name}"), &format!("{glass}{lamp}{body}"));
+        let (_dir, scene) = scene_file(&format!("glass-{name}"), &format!("{glass}{lamp}{body}"));
         assert_bad(&photon(&["info", s(&scene)]), &[needle]);
     }
     // A closed mesh with one face listed twice (three triangles on an edge): not a manifold.
@@ -381,7 +381,7 @@ fn unsupported_dielectric_geometry_is_refused() {
     // a mirrored glass box is accepted.
     let mirrored =
         surface("box", "{ type = \"box\", min = [0,0,0], max = [1,1,1], transform = { scale = [-1, 1, 1] } }");
-    let (_, scene) = scene_file("glass-mirrored", &format!("{glass}{lamp}{mirrored}"));
+    let (_dir, scene) = scene_file("glass-mirrored", &format!("{glass}{lamp}{mirrored}"));
     let o = photon(&["info", s(&scene)]);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o));
     // The bundled glass scene passes every check.

@@ -847,8 +847,8 @@ fn smooth_sphere_obj(center: [f64; 3], radius: f64, nu: usize, nv: usize, with_n
 }
 
 /// The Cornell box with its tall block swapped for a low-poly sphere (20 faces) of `material`
-/// (a `[materials.sphere]` body), smooth-shaded or flat.
-fn cornell_with_sphere(material: &str, smooth: bool, name: &str) -> String {
+/// (a `[materials.sphere]` body), smooth-shaded or flat; with the folder holding the mesh.
+fn cornell_with_sphere(material: &str, smooth: bool, name: &str) -> (String, common::TempDir) {
     let dir = common::temp_dir(name);
     let obj = dir.join("sphere.obj");
     // Cornell units are mm; the sphere stands where the tall block stood, 1 mm off the floor.
@@ -863,7 +863,7 @@ fn cornell_with_sphere(material: &str, smooth: bool, name: &str) -> String {
         "name = \"sphere\"\nmaterial = \"sphere\"\nshape = {{ type = \"mesh\", file = \"{}\" }}",
         obj.display()
     );
-    toml.replace(&block, &sphere) + &format!("\n[materials.sphere]\n{material}\n")
+    (toml.replace(&block, &sphere) + &format!("\n[materials.sphere]\n{material}\n"), dir)
 }
 
 #[test]
@@ -873,10 +873,10 @@ fn smooth_shaded_low_poly_sphere_light_path_and_bdpt_images_agree() {
     // path tracer's factor |ωi·n_s|/|ωi·n_g| in its place (no adjoint, as Mitsuba 3's particle
     // tracer in its issue #42) the light tracer's sphere block stands at z = 33 against the path
     // tracer's; with it the three integrators estimate the same image.
-    let toml = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", true, "smooth-sphere");
+    let (toml, _mesh) = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", true, "smooth-sphere");
     assert_three_integrators_agree(&toml, 2_000_000, 21);
     // A glossy sphere: rough aluminium-like conductor reflects the box in the shading frame.
-    let glossy =
+    let (glossy, _glossy_mesh) =
         cornell_with_sphere("type = \"conductor\"\nmetal = \"Al\"\nroughness = 0.25", true, "smooth-glossy-sphere");
     assert_three_integrators_agree(&glossy, 2_000_000, 22);
 }
@@ -885,8 +885,9 @@ fn smooth_shaded_low_poly_sphere_light_path_and_bdpt_images_agree() {
 fn smooth_shading_changes_the_image_of_a_low_poly_sphere() {
     // The same 20 facets flat and smooth-shaded: the path tracer's images must differ where the
     // sphere is seen (else the normals would not be used at all).
-    let flat = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", false, "flat-sphere");
-    let smooth = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", true, "smooth-sphere-2");
+    let (flat, _flat_mesh) = cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", false, "flat-sphere");
+    let (smooth, _smooth_mesh) =
+        cornell_with_sphere("type = \"lambertian\"\nreflectance = 0.75", true, "smooth-sphere-2");
     let (a, _, _) = render(&flat, Integrator::Path, 1_000_000, 23);
     let (b, _, _) = render(&smooth, Integrator::Path, 1_000_000, 24);
     // 4×4 blocks: a facet spans ~6 pixels across, so larger ones average the facets away.

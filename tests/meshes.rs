@@ -359,7 +359,7 @@ fn malformed_ply_files_name_the_file_and_the_line_or_byte() {
 
 #[test]
 fn malformed_obj_normals_name_the_file_and_the_line() {
-    let dir = std::env::temp_dir().join(format!("photon-obj-normals-{}", std::process::id()));
+    let dir = common::temp_dir("obj-normals");
     std::fs::create_dir_all(&dir).unwrap();
     let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
     let cases = [

@@ -259,7 +259,7 @@ fn a_surface_spectrum_follows_the_lamp_spectrum_it_receives() {
     // spectrum makes transport spectral even though nothing in the scene varies with wavelength.
     // Each photon hits the plate once, and the expected-value estimator books 70 % of it as
     // absorbed: the absorbed spectrum is 0.7 × the incident one in every bin, exactly.
-    let dir = std::env::temp_dir().join(format!("photon-spectrum-{}", std::process::id()));
+    let dir = common::temp_dir("spectrum");
     std::fs::create_dir_all(&dir).unwrap();
     let table = dir.join("step.csv");
     std::fs::write(&table, "wavelength_nm,value\n400,1\n499.999,1\n500,3\n599.999,3\n600,0\n700,0\n").unwrap();
@@ -335,7 +335,7 @@ fn a_mesh_maps_over_its_texture_coordinates() {
     // The plate of the flatness test as an OBJ of four triangles around a centre vertex, with
     // texture coordinates that turn it a quarter and squeeze it (u runs along y, v along x): the
     // map must still be flat within noise (χ²), add up to the tally, and cover the plate's area.
-    let dir = std::env::temp_dir().join(format!("photon-uvmesh-{}", std::process::id()));
+    let dir = common::temp_dir("uvmesh");
     std::fs::create_dir_all(&dir).unwrap();
     let obj = "v 0 0 0\nv 2 0 0\nv 2 1 0\nv 0 1 0\nv 1 0.5 0\n\
                vt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\nvt 0.5 0.5\n\

@@ -47,12 +47,43 @@ pub fn assert_z(what: &str, measured: f64, expected: f64, stderr: f64, bound: f6
     assert!(z.abs() <= bound, "{what}: measured {measured}, expected {expected}, stderr {stderr}, z = {z:.2}");
 }
 
-/// A fresh, empty folder for one test, unique to this process.
-pub fn temp_dir(name: &str) -> std::path::PathBuf {
+/// A fresh, empty folder for one test, unique to this process, removed when the test passes
+/// (kept when it fails, for a look at what the run wrote).
+pub fn temp_dir(name: &str) -> TempDir {
     let d = std::env::temp_dir().join(format!("photon-test-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
-    d
+    TempDir(d)
+}
+
+/// A test's folder (`temp_dir`): a path, removed on drop unless the test is failing.
+pub struct TempDir(pub std::path::PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = std::path::PathBuf;
+    fn deref(&self) -> &std::path::PathBuf {
+        &self.0
+    }
+}
+
+impl AsRef<std::path::Path> for TempDir {
+    fn as_ref(&self) -> &std::path::Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
 }
 
 /// The bundled Cornell box with its spectrum and mesh paths made absolute, so the text can be
