@@ -13,9 +13,8 @@ const CIE_CSV: &str = include_str!("../../spectra/cie1931_2deg_xyz.csv");
 pub struct Cmf {
     first_nm: f64,
     rows: Vec<[f64; 3]>,
-    /// The last row's index, and as f64: `at` then converts no index from usize.
+    /// The last row's index as u32: `at` then converts no index from usize.
     last: u32,
-    last_f: f64,
 }
 
 pub fn cmf() -> &'static Cmf {
@@ -33,7 +32,7 @@ pub fn cmf() -> &'static Cmf {
         }
         assert!(rows.len() >= 2, "CIE table has rows");
         let last = rows.len() - 1;
-        Cmf { first_nm, rows, last: last as u32, last_f: last as f64 }
+        Cmf { first_nm, rows, last: last as u32 }
     })
 }
 
@@ -42,7 +41,7 @@ impl Cmf {
     #[inline]
     pub fn at(&self, lambda_nm: f64) -> [f64; 3] {
         let x = lambda_nm - self.first_nm;
-        if !(x >= 0.0) || x > self.last_f {
+        if !(x >= 0.0) || x > self.last as f64 {
             return [0.0; 3];
         }
         // SAFETY: 0 ≤ x ≤ last < 2^32.
