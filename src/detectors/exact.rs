@@ -15,7 +15,7 @@
 //! accumulator in photon takes at most one value per batch (`MAX_VALUES`).
 
 const SLOT_BITS: i32 = 28;
-const SLOT_MASK: u128 = (1 << SLOT_BITS) - 1;
+const SLOT_MASK: u64 = (1 << SLOT_BITS) - 1;
 /// Weight of slot 0's lowest bit: the smallest subnormal, 2^−1074.
 const LOWEST_EXPONENT: i32 = -1074;
 /// `top` of a sum that has seen no value.
@@ -33,6 +33,15 @@ pub struct ExactSum {
     /// Slot of `words[0]`; `words[k]` is slot `top − k`.
     top: i32,
     words: [i64; 3],
+}
+
+/// The 28-bit parts (bits 0–27, 28–55, 56–83) of m·2^shift for m < 2^53, shift < 28, in u64
+/// arithmetic (a u128 shift cost twice the instructions): the wrapping shift keeps bits 0–63,
+/// enough for the two low parts, and bits 56 and up are m >> (56 − shift).
+#[inline(always)]
+fn split_parts(m: u64, shift: u32) -> (u64, u64, u64) {
+    let low_bits = m.wrapping_shl(shift);
+    (low_bits & SLOT_MASK, (low_bits >> SLOT_BITS) & SLOT_MASK, m >> (2 * SLOT_BITS as u32 - shift))
 }
 
 impl Default for ExactSum {
@@ -59,13 +68,11 @@ impl ExactSum {
             return;
         }
         let slot = p / SLOT_BITS;
-        let wide = (m as u128) << (p % SLOT_BITS);
+        let (lo, mid, hi) = split_parts(m, (p % SLOT_BITS) as u32);
         // Two's-complement negation by mask: (v ^ s) − s is v for s = 0 and −v for s = −1.
         let s = -((bits >> 63) as i64);
-        let signed = |v: u128| ((v as i64) ^ s) - s;
-        let lo = signed(wide & SLOT_MASK);
-        let mid = signed((wide >> SLOT_BITS) & SLOT_MASK);
-        let hi = signed(wide >> (2 * SLOT_BITS));
+        let signed = |v: u64| ((v as i64) ^ s) - s;
+        let (lo, mid, hi) = (signed(lo), signed(mid), signed(hi));
         let value_top = slot + (hi != 0) as i32 + (hi != 0 || mid != 0) as i32;
         self.raise_top(value_top);
         // Where the value's three slots (slot + 2, + 1, + 0) fall in the window: a part above
@@ -330,6 +337,30 @@ mod tests {
         let exact = fsum(&v);
         let err = (sum_of(&v).value() - exact).abs();
         assert!(err <= v.len() as f64 * 1e20 * 2f64.powi(-56), "error {err}");
+    }
+
+    #[test]
+    fn parts_match_a_wide_shift() {
+        let mut rng = 0x2545_F491_4F6C_DD1Du64;
+        for shift in 0..SLOT_BITS as u32 {
+            for k in 0..2000 {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                // The extremes of a 53-bit significand and random ones.
+                let m = match k {
+                    0 => (1 << 53) - 1,
+                    1 => 1 << 52,
+                    2 => 1,
+                    _ => rng >> 11,
+                };
+                let wide = (m as u128) << shift;
+                let mask = (1u128 << SLOT_BITS) - 1;
+                let expected =
+                    ((wide & mask) as u64, ((wide >> SLOT_BITS) & mask) as u64, (wide >> (2 * SLOT_BITS)) as u64);
+                assert_eq!(split_parts(m, shift), expected, "m = {m:#x}, shift = {shift}");
+            }
+        }
     }
 
     #[test]
