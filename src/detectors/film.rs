@@ -35,8 +35,12 @@ pub struct CameraModel {
     half_h: f32,
     pub width: usize,
     pub height: usize,
-    /// Area of one pixel on the unit-distance image plane.
-    pixel_area: f32,
+    /// `right` and `up` in pixels per unit of image plane (`project`): a point at depth z lands
+    /// at column v·column_axis/z + width/2 and row height/2 − v·row_axis/z.
+    column_axis: Vec3A,
+    row_axis: Vec3A,
+    /// 1/area of one pixel on the unit-distance image plane.
+    inv_pixel_area: f32,
 }
 
 /// Where a world point lands on the film, and the factor 1/(d² A_pix cos³θ_c) of its splat.
@@ -60,31 +64,47 @@ impl CameraModel {
         let half_w = (c.fov_deg.to_radians() * 0.5).tan() as f32;
         let half_h = half_w * height as f32 / width as f32;
         let pixel_w = 2.0 * half_w / width as f32;
-        CameraModel { position, forward, right, up, half_w, half_h, width, height, pixel_area: pixel_w * pixel_w }
+        let pixel_area = pixel_w * pixel_w;
+        CameraModel {
+            position,
+            forward,
+            right,
+            up,
+            half_w,
+            half_h,
+            width,
+            height,
+            column_axis: right * (0.5 * width as f32 / half_w),
+            row_axis: up * (0.5 * height as f32 / half_h),
+            inv_pixel_area: 1.0 / pixel_area,
+        }
     }
 
     #[inline]
     pub fn project(&self, p: Vec3A) -> Option<Projection> {
+        // Two divisions and a square root: 1/z and 1/d serve every quotient below.
         let v = p - self.position;
         let z = v.dot(self.forward);
-        if z <= 0.0 {
+        if !(z > 0.0) {
             return None;
         }
-        let sx = v.dot(self.right) / z / self.half_w;
-        let sy = v.dot(self.up) / z / self.half_h;
-        if !(sx > -1.0 && sx < 1.0 && sy > -1.0 && sy < 1.0) {
+        let inv_z = 1.0 / z;
+        let (w, h) = (self.width as f32, self.height as f32);
+        let col_f = v.dot(self.column_axis) * inv_z + 0.5 * w;
+        let row_f = 0.5 * h - v.dot(self.row_axis) * inv_z;
+        if !(col_f > 0.0 && col_f < w && row_f > 0.0 && row_f < h) {
             return None;
         }
-        let col = (((sx + 1.0) * 0.5 * self.width as f32) as usize).min(self.width - 1);
-        let row = (((1.0 - sy) * 0.5 * self.height as f32) as usize).min(self.height - 1);
-        let d2 = v.length_squared();
-        let distance = d2.sqrt();
-        let cos_c = z / distance;
+        let col = (col_f as usize).min(self.width - 1);
+        let row = (row_f as usize).min(self.height - 1);
+        let distance = v.length();
+        let inv_d = 1.0 / distance;
+        // 1/(d² A_pix cos³θ_c) with cosθ_c = z/d: d/(A_pix z³).
         Some(Projection {
             pixel: row * self.width + col,
-            to_camera: -v / distance,
+            to_camera: -v * inv_d,
             distance,
-            importance: 1.0 / (d2 * self.pixel_area * cos_c * cos_c * cos_c),
+            importance: distance * (inv_z * inv_z * inv_z) * self.inv_pixel_area,
         })
     }
 

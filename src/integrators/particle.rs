@@ -857,8 +857,8 @@ impl Hero {
 
     /// XYZ of the emission vertex (before the emission pdf and camera importance).
     fn emission_xyz(&self) -> Vec3A {
-        let d = self.denominator();
-        (0..4).fold(Vec3A::ZERO, |acc, k| acc + self.colour[k] * (self.power[k] / d) as f32)
+        let inv_d = 1.0 / self.denominator();
+        (0..4).fold(Vec3A::ZERO, |acc, k| acc + self.colour[k] * (self.power[k] * inv_d) as f32)
     }
 
     /// XYZ of a diffuse vertex whose BSDF factor toward the camera at λₖ is `bsdf[k]`.
@@ -868,8 +868,9 @@ impl Hero {
         if !(d > 0.0) {
             return Vec3A::ZERO;
         }
+        let inv_d = 1.0 / d;
         (0..4).fold(Vec3A::ZERO, |acc, k| {
-            acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] / d) as f32
+            acc + self.colour[k] * (self.power[k] * self.throughput[k] * bsdf[k] * inv_d) as f32
         })
     }
 }
