@@ -48,6 +48,18 @@ sed -e "s#file = \"#file = \"$ROOT/scenes/#" \
     -e 's#{ file = "[^"]*cornell_red.csv" }#0.3446#' \
     -e 's#{ file = "[^"]*cornell_green.csv" }#0.2045#' scenes/cornell_box.toml > "$WORK/cornell_grey.toml"
 grep -q "reflectance = 0.7355" "$WORK/cornell_grey.toml" || { echo "grey box rewrite failed" >&2; exit 1; }
+# The grey box with both blocks replaced by the 1.3 M-triangle sphere, as mini_ptracer's `sphere`
+# (and the throughput benchmark's million_triangles) has it.
+python3 - "$WORK/cornell_grey.toml" "$WORK/million_grey.toml" <<'PY'
+import re, sys
+t = open(sys.argv[1]).read()
+sphere = 'shape = { type = "sphere", center = [278, 160.5, 280], radius = 160, subdivisions = 8 }'
+t, n1 = re.subn(r'name = "short_block"\nmaterial = "white"\nshape = \{ type = "mesh", file = "[^"]*" \}',
+                'name = "sphere"\nmaterial = "white"\n' + sphere, t)
+t, n2 = re.subn(r'\[\[surfaces\]\]\nname = "tall_block"\nmaterial = "white"\nshape = \{[^\n]*\}\n\n', "", t)
+assert n1 == 1 and n2 == 1, "sphere box rewrite failed"
+open(sys.argv[2], "w").write(t)
+PY
 
 LOG=$WORK/figures.txt
 : > "$LOG"
@@ -59,6 +71,15 @@ photon_run() {  # label, scene, extra args...
     --threads 1 --estimator expected "$@" > /dev/null
   python3 -c "import sys; u,s=map(float,open(sys.argv[1]).read().split()[-2:]); print(sys.argv[2], (u+s)*1e9/$PHOTONS)" \
     "$WORK/time.txt" "$label" >> "$LOG"
+}
+photon_trace() {  # label, scene, extra args...: tracing time only (run.json's wall time on one
+  # worker thread), as mini_ptracer times its trace: loading the 1.3 M-triangle sphere and
+  # building its tree cost photon ~1.5 s of process time, which is not what is compared.
+  local label=$1 scene=$2
+  shift 2
+  "$PHOTON" run "$scene" --out "$WORK/out" --photons "$PHOTONS" --threads 1 --estimator expected "$@" > /dev/null
+  python3 -c "import json, sys; print(sys.argv[2], json.load(open(sys.argv[1]))['wall_seconds'] * 1e9 / $PHOTONS)" \
+    "$WORK/out/run.json" "$label" >> "$LOG"
 }
 embree_rays() {  # scene
   "$WORK/raybench" "$1" "$RAYS_M" 1 "$ROOT/scenes/meshes" | awk -v s="$1" '
@@ -77,10 +98,15 @@ mini() {
     /^no-image +1 / {print "mini_no_image", $7}
     /^image +1 / {print "mini_image", $7}' >> "$LOG"
 }
+mini_sphere() {
+  "$WORK/mini_ptracer" sphere 1 1 | awk '/^no-image +1 / {print "mini_sphere_no_image", $7}' >> "$LOG"
+}
 jobs=(mini "photon_run photon_grey_no_image $WORK/cornell_grey.toml --no-image"
       "photon_run photon_spectral_image scenes/cornell_box.toml" "embree_rays cornell" "photon_rays cornell")
 if [ "$SPHERE" = 1 ]; then
-  jobs+=("embree_rays sphere" "photon_rays sphere")
+  jobs+=("embree_rays sphere" "photon_rays sphere" mini_sphere
+        "photon_trace photon_trace_grey_cornell $WORK/cornell_grey.toml --no-image"
+        "photon_trace photon_trace_grey_million $WORK/million_grey.toml --no-image")
 fi
 for ((r = 0; r < ROUNDS; r++)); do
   echo "round $((r + 1)) of $ROUNDS" >&2
@@ -123,6 +149,9 @@ ratio("ray cast, sphere: photon / Embree (closest hit)", "photon_closest_sphere"
 ratio("ray cast, sphere: photon / Embree (shadow ray)", "photon_shadow_sphere", "embree_shadow_sphere", "<= 1.2")
 ratio("whole loop, grey box --no-image: photon / mini tracer", "photon_grey_no_image", "mini_no_image", "<= 1.25")
 ratio("spectral box with image: photon / mini tracer with image", "photon_spectral_image", "mini_image", "")
+ratio("whole loop, sphere box --no-image (tracing): photon / mini", "photon_trace_grey_million", "mini_sphere_no_image", "")
+ratio("sphere / Cornell box per photon (tracing): photon", "photon_trace_grey_million", "photon_trace_grey_cornell", "<= 1.5")
+ratio("sphere / Cornell box per photon: mini tracer (Embree)", "mini_sphere_no_image", "mini_no_image", "")
 xs = [r["photon_spectral_image"] for r in by_round.values() if "photon_spectral_image" in r]
 if xs:
     print(f"  {'spectral box with image, photon CPU ns per photon':58s} {statistics.median(xs):7.0f}   target <= 1100")
