@@ -291,7 +291,12 @@ fn merge(
     scene_path: Option<PathBuf>,
     quiet: bool,
 ) -> Result<Outcome, Error> {
-    let parts = part_paths.iter().map(|p| output::state::read_part(p)).collect::<Result<Vec<_>, _>>()?;
+    // Each part read whole (its checksum verified) but only its header kept: `state::merge` reads
+    // them again one at a time.
+    let parts = part_paths
+        .iter()
+        .map(|p| output::state::read_part(p).map(|p| p.into_header()))
+        .collect::<Result<Vec<_>, _>>()?;
     let parts = output::state::check_parts(parts)?;
     let h = parts[0].header.clone();
     let scene_path = scene_path.unwrap_or_else(|| PathBuf::from(&h.scene_absolute));

@@ -334,7 +334,7 @@ fn run_rank(
             let (bytes, _) = world.process_at_rank((rank + step) as i32).receive_vec::<u8>();
             let from = PathBuf::from(format!("rank {}", rank + step));
             let added = output::state::part_from_bytes(&bytes, &from)
-                .and_then(|part| output::state::add_part(&scene, &mut result, &part));
+                .and_then(|part| output::state::add_part(&scene, &mut result, part));
             if let Err(e) = added {
                 eprintln!("error: rank {rank}: {e}");
                 world.abort(1);

@@ -84,6 +84,14 @@ impl StateHeader {
     }
 }
 
+/// A part's header and where it was read from: what `check_parts` needs, without the part's
+/// tallies and film (`photon merge` holds one part's arrays at a time).
+#[derive(Clone, Debug)]
+pub struct PartHeader {
+    pub path: PathBuf,
+    pub header: StateHeader,
+}
+
 /// A part read back: its header and its exact tallies and film (views not yet sized to a scene).
 pub struct Part {
     pub path: PathBuf,
@@ -393,7 +401,7 @@ fn decode(bytes: &[u8]) -> Result<Decoded, String> {
 
 /// Checks that `parts` are of one run (scene, seed, options) and cover an unbroken range of
 /// batches once each; returns them sorted by their first batch.
-pub fn check_parts(mut parts: Vec<Part>) -> Result<Vec<Part>, Error> {
+pub fn check_parts(mut parts: Vec<PartHeader>) -> Result<Vec<PartHeader>, Error> {
     let usage = |m: String| Error::Usage(m);
     if parts.is_empty() {
         return Err(usage("photon merge needs at least one part".into()));
@@ -439,8 +447,16 @@ pub fn check_parts(mut parts: Vec<Part>) -> Result<Vec<Part>, Error> {
     Ok(parts)
 }
 
-/// The run the parts (checked by `check_parts`) make together, for `write_run`.
-pub fn merge(scene: &Scene, parts: &[Part]) -> Result<RunResult, Error> {
+impl Part {
+    /// Its header alone, the tallies and film dropped.
+    pub fn into_header(self) -> PartHeader {
+        PartHeader { path: self.path, header: self.header }
+    }
+}
+
+/// The run the parts (checked by `check_parts`) make together, for `write_run`: each part is read
+/// again and added, one at a time, so the memory a merge takes is one part's, however many.
+pub fn merge(scene: &Scene, parts: &[PartHeader]) -> Result<RunResult, Error> {
     let h = &parts[0].header;
     if format!("{:016x}", scene.input_digest) != h.input_digest {
         return Err(Error::Usage(format!(
@@ -466,7 +482,11 @@ pub fn merge(scene: &Scene, parts: &[Part]) -> Result<RunResult, Error> {
         ranks: 1,
         mpi: None,
     };
-    for p in parts {
+    for ph in parts {
+        let p = read_part(&ph.path)?;
+        if p.header != ph.header {
+            return Err(Error::Input(InputError::new(&ph.path, "", None, "changed while it was being merged")));
+        }
         add_part(scene, &mut r, p)?;
     }
     if let (Some(f), Some(cam)) = (&r.film, &scene.camera) {
@@ -481,7 +501,7 @@ pub fn merge(scene: &Scene, parts: &[Part]) -> Result<RunResult, Error> {
 }
 
 /// Adds a part's tallies and film to `r` (a run of `scene` that keeps exact sums).
-pub fn add_part(scene: &Scene, r: &mut RunResult, p: &Part) -> Result<(), Error> {
+pub fn add_part(scene: &Scene, r: &mut RunResult, p: Part) -> Result<(), Error> {
     let bad = |m: String| {
         Error::Input(InputError::new(&p.path, "", None, format!("does not fit {}: {m}", scene.path.display())))
     };
@@ -491,24 +511,15 @@ pub fn add_part(scene: &Scene, r: &mut RunResult, p: &Part) -> Result<(), Error>
     if expected != found {
         return Err(bad(format!("its tallies have {found:?} rows, the scene's {expected:?}")));
     }
-    part.sums = Some(Box::new(p.sums.clone()));
+    part.sums = Some(Box::new(p.sums));
     part.photons = p.counts.photons;
     part.batches = p.counts.batches;
     part.scatterings = p.counts.scatterings;
     part.scatterings_sq = p.counts.scatterings_sq;
     part.counters = p.counts.counters;
     r.tallies.merge_run(&part).map_err(bad)?;
-    if let Some(state) = &p.film {
-        let f = Film::from_state(FilmState {
-            width: state.width,
-            height: state.height,
-            pixels: state.pixels.clone(),
-            image_y_sq_over_n: state.image_y_sq_over_n,
-            photons: state.photons,
-            film_batches: state.film_batches,
-            camera: state.camera.clone(),
-        })
-        .ok_or_else(|| bad("its film's arrays do not fit its size".into()))?;
+    if let Some(state) = p.film {
+        let f = Film::from_state(state).ok_or_else(|| bad("its film's arrays do not fit its size".into()))?;
         match r.film.as_mut() {
             None => r.film = Some(f),
             Some(acc) => acc.merge_run(&f).map_err(bad)?,
