@@ -1063,6 +1063,28 @@ fn map_on_a_sphere() {
 }
 
 #[test]
+fn too_many_triangles_are_refused_before_they_are_made() {
+    // 103 spheres of 20·4⁹ = 5 242 880 triangles: 540 M, past the 2²⁹ the tree can index on any
+    // machine (and past the memory on most, which the refusal may name instead). Refused before
+    // any is made, so the case takes no time and no memory.
+    let mut toml = BASE.to_string();
+    for k in 0..103 {
+        toml += &format!(
+            "\n[[surfaces]]\nname = \"ball{k}\"\nmaterial = \"white\"\nshape = {{ type = \"sphere\", center = [0.5, 0.5, 0.5], radius = 0.1, subdivisions = 9 }}\n"
+        );
+    }
+    let start = std::time::Instant::now();
+    expect_bad(
+        "too-many-triangles",
+        &toml,
+        &[],
+        &["shape`: the scene's shapes make", "triangles up to this one, more than"],
+    );
+    // A generated 5·10⁸ triangles would take minutes and tens of GB.
+    assert!(start.elapsed().as_secs() < 20, "the refusal took {:?}", start.elapsed());
+}
+
+#[test]
 fn map_of_zero_texels() {
     let toml = edit(BASE, "[1, 0, 0]] }\n", "[1, 0, 0]] }\nmap = { resolution = [0, 8] }\n");
     expect_bad(

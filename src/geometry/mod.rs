@@ -8,6 +8,8 @@ use std::time::Duration;
 mod bvh;
 
 use bvh::Bvh8;
+/// The most triangles a scene's geometry can hold (the tree indexes them in 29 bits).
+pub use bvh::MAX_TRIANGLES;
 use glam::{Vec3A, Vec3Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;

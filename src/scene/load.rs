@@ -65,6 +65,30 @@ pub fn load_str(path: &Path, text: &str) -> Result<Scene, Error> {
     Ok(scene)
 }
 
+/// Peak memory a triangle costs from loading to tracing (the 1.3 M-triangle sphere box peaks
+/// at 420 bytes a triangle: f64 shapes, f32 records, the tree and its build), rounded up.
+const BYTES_PER_TRIANGLE: u64 = 512;
+
+/// The most triangles a scene may have, and why: what the tree can index, or what fits in the
+/// memory this machine has available now (Linux's MemAvailable) at `BYTES_PER_TRIANGLE`.
+fn max_scene_triangles() -> (u64, String) {
+    let index = crate::geometry::MAX_TRIANGLES as u64 - 1;
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
+        let line = m.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kib| kib.saturating_mul(1024))
+    });
+    match available {
+        Some(bytes) if bytes / BYTES_PER_TRIANGLE < index => (
+            bytes / BYTES_PER_TRIANGLE,
+            format!(
+                "at about {BYTES_PER_TRIANGLE} bytes a triangle they would not fit in the {:.1} GB of memory available",
+                bytes as f64 / 1e9
+            ),
+        ),
+        _ => (index, "the most a scene's tree can index".to_string()),
+    }
+}
+
 struct Loader<'s> {
     src: &'s Source<'s>,
     base_dir: PathBuf,
@@ -271,6 +295,8 @@ impl<'s> Loader<'s> {
         let entries = self.surface_entries(root, &material_index, &mut names)?;
         let mut light_specs = self.light_specs(root, &material_index, range, &mut names)?;
         let camera = root.with("camera", |n| self.camera(n.table()?, unit_m))?;
+        let shapes = entries.iter().enumerate().map(|(i, e)| (index_path("surfaces", i), &e.shape, e.shape_line));
+        self.check_triangle_budget(shapes.chain(light_specs.iter().map(|l| (l.path.clone(), &l.shape, l.shape_line))))?;
 
         // Triangulate in metres (f64): surfaces first, then area lights.
         let mut warnings = Vec::new();
@@ -853,6 +879,26 @@ impl<'s> Loader<'s> {
             _ => return Err(t.err_at(given[1], format!("give only one of {}", given.join(", ")))),
         };
         Ok(power)
+    }
+
+    /// Refuses, before any is made, a scene whose shapes of known size (all but meshes, which their
+    /// files bound) make more triangles than `max_scene_triangles` allows: 100 spheres of 5·10⁶
+    /// triangles must not fill the memory on their way to a refusal.
+    fn check_triangle_budget<'e>(&self, shapes: impl Iterator<Item = (String, &'e ShapeSpec, usize)>) -> R<()> {
+        let (cap, why) = max_scene_triangles();
+        let mut total = 0u64;
+        for (entry, shape, line) in shapes {
+            total = total.saturating_add(shape.triangle_count().unwrap_or(0));
+            if total > cap {
+                return Err(InputError::new(
+                    self.src.file,
+                    &child_path(&entry, "shape"),
+                    Some(line),
+                    format!("the scene's shapes make {total} triangles up to this one, more than {cap}: {why}"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Each surface's shape as triangles in metres (f64); a map over a mesh needs texture

@@ -80,6 +80,19 @@ pub enum ShapeSpec {
 }
 
 impl ShapeSpec {
+    /// Triangles the shape will make, where that is known before it is made (a mesh's only once
+    /// its file is read).
+    pub fn triangle_count(&self) -> Option<u64> {
+        match self {
+            ShapeSpec::Quad { .. } => Some(2),
+            ShapeSpec::Disk { segments, .. } => Some(*segments as u64),
+            ShapeSpec::Sphere { subdivisions, .. } => Some(20 << (2 * *subdivisions as u64)),
+            ShapeSpec::Box { .. } => Some(12),
+            ShapeSpec::Point { .. } | ShapeSpec::Rays { .. } => Some(0),
+            ShapeSpec::Mesh { .. } => None,
+        }
+    }
+
     /// The shape's `transform` (identity when none was given).
     pub fn transform(&self) -> &Transform {
         match self {
@@ -436,6 +449,36 @@ pub fn icosphere(level: u32) -> Vec<[DVec3; 3]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn triangle_counts_are_known_ahead() {
+        let t = Transform::default();
+        for (shape, n) in [
+            (ShapeSpec::Sphere { center: [0.0; 3], radius: 1.0, subdivisions: 3, transform: t.clone() }, 1280),
+            (
+                ShapeSpec::Disk {
+                    center: [0.0; 3],
+                    normal: [0.0, 0.0, 1.0],
+                    radius: 1.0,
+                    segments: 17,
+                    transform: t.clone(),
+                },
+                17,
+            ),
+            (ShapeSpec::Box { min: [0.0; 3], max: [1.0; 3], transform: t.clone() }, 12),
+            (
+                ShapeSpec::Quad {
+                    corners: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]],
+                    transform: t,
+                },
+                2,
+            ),
+        ] {
+            let src = Source::new(Path::new("t.toml"), "");
+            let made = triangulate(&shape, &src, "shape", 1, &mut Vec::new()).unwrap().tris.len() as u64;
+            assert_eq!((shape.triangle_count(), made), (Some(n), n));
+        }
+    }
 
     #[test]
     fn icosphere_normals_point_outward() {
