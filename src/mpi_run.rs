@@ -327,11 +327,11 @@ fn run_rank(
                 Err(_) => world.abort(1),
             };
             stats.reduce_bytes += bytes.len() as u64;
-            world.process_at_rank((rank - step) as i32).send(&bytes[..]);
+            send_chunked(&world.process_at_rank((rank - step) as i32), &bytes);
             break;
         }
         if rank + step < ranks {
-            let (bytes, _) = world.process_at_rank((rank + step) as i32).receive_vec::<u8>();
+            let bytes = receive_chunked(&world.process_at_rank((rank + step) as i32));
             let from = PathBuf::from(format!("rank {}", rank + step));
             let added = output::state::part_from_bytes(&bytes, &from)
                 .and_then(|part| output::state::add_part(&scene, &mut result, part));
@@ -377,4 +377,27 @@ fn run_rank(
         println!("wrote {} ({} ranks): {}", out_dir.display(), ranks, report.files.join(", "));
     }
     Ok(Some(stop))
+}
+
+/// Largest piece of a state sent in one message: MPI counts elements in a C int, so one send of
+/// 2³¹ bytes or more (a film of ~19 M pixels) would fail.
+const MESSAGE_BYTES: usize = 1 << 30;
+
+/// Sends `bytes` as its length, then pieces of at most `MESSAGE_BYTES`.
+fn send_chunked(to: &impl Destination, bytes: &[u8]) {
+    to.send(&(bytes.len() as u64));
+    for piece in bytes.chunks(MESSAGE_BYTES) {
+        to.send(piece);
+    }
+}
+
+/// Receives what `send_chunked` sent (messages from one sender arrive in the order sent).
+fn receive_chunked(from: &impl Source) -> Vec<u8> {
+    let (len, _) = from.receive::<u64>();
+    let mut bytes = Vec::with_capacity(len as usize);
+    while bytes.len() < len as usize {
+        let (piece, _) = from.receive_vec::<u8>();
+        bytes.extend_from_slice(&piece);
+    }
+    bytes
 }
