@@ -23,8 +23,8 @@ use photon::detectors::tally::{ChannelSums, Counters, Tallies, TallySums, CHANNE
 use photon::error::Error;
 use photon::output;
 use photon::run::{
-    apply_options, simulate_controlled, MpiStats, RunOptions, StopReason, BATCH_PHOTONS, MAX_BATCHES_WITHOUT_SIGNAL,
-    MAX_PHOTONS, MIN_BATCHES_FOR_REL_ERROR, MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
+    apply_options, max_photons, simulate_controlled, MpiStats, RunOptions, StopReason, BATCH_PHOTONS,
+    MAX_BATCHES_WITHOUT_SIGNAL, MIN_BATCHES_FOR_REL_ERROR, MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
 };
 
 /// A rank's batches between two collective decisions.
@@ -216,7 +216,7 @@ fn run_rank(
     let cap = match (opts.batches, opts.photons) {
         (Some(_), _) => None,
         (None, Some(p)) => Some(p),
-        (None, None) if open_ended => Some(MAX_PHOTONS),
+        (None, None) if open_ended => Some(max_photons(&scene)),
         (None, None) => Some(scene.simulation.photons),
     };
     let total_batches = match (opts.batches, cap) {

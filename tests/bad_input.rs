@@ -1085,6 +1085,30 @@ fn too_many_triangles_are_refused_before_they_are_made() {
 }
 
 #[test]
+fn more_camera_samples_a_pixel_than_the_film_counts_are_refused() {
+    // A 1×1 image from the path tracer: one camera sample a photon, all in the one pixel, whose
+    // count is a u32 (film and state files). 2³² photons would wrap it.
+    let toml = format!(
+        "[camera]\nposition = [0.5, 0.5, -2]\nlook_at = [0.5, 0.5, 0]\nfov_deg = 40\nresolution = [1, 1]\n\n{BASE}"
+    );
+    let run = |extra: &[&str]| -> Vec<String> {
+        ["run", "{scene}", "--out", "{out}", "--quiet", "--integrator", "path"]
+            .iter()
+            .chain(extra)
+            .map(|s| s.to_string())
+            .collect()
+    };
+    for (name, extra) in [
+        ("camera-samples-photons", &["--photons", "4294967296"][..]),
+        ("camera-samples-batches", &["--batches", "262143..262144"][..]),
+    ] {
+        let args = run(extra);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        expect_exit2(name, Some(&toml), &[], &args, &["more than 2^32 − 1 samples each", "at most 4294967295 photons"]);
+    }
+}
+
+#[test]
 fn map_of_zero_texels() {
     let toml = edit(BASE, "[1, 0, 0]] }\n", "[1, 0, 0]] }\nmap = { resolution = [0, 8] }\n");
     expect_bad(

@@ -125,6 +125,19 @@ pub struct MpiStats {
     pub rank_seconds: Vec<f64>,
 }
 
+/// The most photons a run of `scene` may trace: `MAX_PHOTONS`, and where a camera integrator
+/// makes the image (one camera sample a photon, sample k in pixel k mod pixels), no more than
+/// 2³² − 1 samples a pixel, which its film and state files count in u32.
+pub fn max_photons(scene: &Scene) -> u64 {
+    match (&scene.camera, scene.simulation.integrator) {
+        (Some(c), Integrator::Path | Integrator::Bdpt) if scene.effects.camera => {
+            let pixels = c.resolution[0] as u64 * c.resolution[1] as u64;
+            MAX_PHOTONS.min(pixels.saturating_mul(u32::MAX as u64))
+        }
+        _ => MAX_PHOTONS,
+    }
+}
+
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
 pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>, Error> {
     if let Some(p) = opts.photons {
@@ -182,6 +195,26 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
                 )));
             }
         }
+    }
+    // What this run plans to trace, where that is fixed now (an open-ended run stops at
+    // `max_photons` instead).
+    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
+    let planned = match opts.batches {
+        Some((_, end)) => Some(end * BATCH_PHOTONS),
+        None if opts.photons.is_some() || !open_ended => Some(scene.simulation.photons),
+        None => None,
+    };
+    let max = max_photons(scene);
+    if planned.is_some_and(|p| p > max) {
+        let c = scene.camera.as_ref().map_or([0, 0], |c| c.resolution);
+        return Err(Error::Usage(format!(
+            "{} photons would give the {}×{} image's pixels more than 2^32 − 1 samples each \
+             (one camera sample a photon, in turn over the pixels): at most {max} photons with the {} integrator",
+            planned.unwrap_or(0),
+            c[0],
+            c[1],
+            scene.simulation.integrator.name()
+        )));
     }
     if opts.threads.is_some_and(|t| t == 0 || t > MAX_THREADS) {
         return Err(Error::Usage(format!("--threads must be between 1 and {MAX_THREADS}")));
@@ -314,7 +347,7 @@ pub fn simulate_controlled(
     let cap = match (opts.batches, opts.photons) {
         (Some((_, end)), _) => end * BATCH_PHOTONS,
         (None, Some(p)) => p,
-        (None, None) if open_ended => MAX_PHOTONS,
+        (None, None) if open_ended => max_photons(scene),
         (None, None) => scene.simulation.photons,
     };
     let (first_batch, end_batch) = opts.batches.unwrap_or((0, cap.div_ceil(BATCH_PHOTONS)));
