@@ -23,7 +23,7 @@ use photon::detectors::tally::{ChannelSums, Counters, Tallies, TallySums, CHANNE
 use photon::error::Error;
 use photon::output;
 use photon::run::{
-    apply_options, max_photons, simulate_controlled, MpiStats, RunOptions, StopReason, BATCH_PHOTONS,
+    apply_options, photon_cap, simulate_controlled, MpiStats, RunOptions, StopReason, BATCH_PHOTONS,
     MAX_BATCHES_WITHOUT_SIGNAL, MIN_BATCHES_FOR_REL_ERROR, MIN_BATCHES_FOR_REL_ERROR_BETWEEN_BATCHES,
 };
 
@@ -212,13 +212,7 @@ fn run_rank(
     }
 
     // Each rank's share, with no stopping rule of its own: the rounds decide.
-    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let cap = match (opts.batches, opts.photons) {
-        (Some(_), _) => None,
-        (None, Some(p)) => Some(p),
-        (None, None) if open_ended => Some(max_photons(&scene)),
-        (None, None) => Some(scene.simulation.photons),
-    };
+    let cap = opts.batches.is_none().then(|| photon_cap(&scene, &opts));
     let total_batches = match (opts.batches, cap) {
         (Some((a, b)), _) => b - a,
         (None, Some(p)) => p.div_ceil(BATCH_PHOTONS),

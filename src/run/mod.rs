@@ -138,6 +138,19 @@ pub fn max_photons(scene: &Scene) -> u64 {
     }
 }
 
+/// The photons a run traces at most: its `--batches` end, `--photons`, `max_photons` for an
+/// open-ended run (a command-line accuracy or time target is obeyed: only a command-line photon
+/// count caps it), else the scene file's `photons`.
+pub fn photon_cap(scene: &Scene, opts: &RunOptions) -> u64 {
+    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
+    match (opts.batches, opts.photons) {
+        (Some((_, end)), _) => end * BATCH_PHOTONS,
+        (None, Some(p)) => p,
+        (None, None) if open_ended => max_photons(scene),
+        (None, None) => scene.simulation.photons,
+    }
+}
+
 /// Applies command-line overrides to the scene and checks them; errors are usage errors (exit 2).
 pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>, Error> {
     if let Some(p) = opts.photons {
@@ -196,21 +209,12 @@ pub fn apply_options(scene: &mut Scene, opts: &RunOptions) -> Result<Vec<usize>,
             }
         }
     }
-    // What this run plans to trace, where that is fixed now (an open-ended run stops at
-    // `max_photons` instead).
-    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let planned = match opts.batches {
-        Some((_, end)) => Some(end * BATCH_PHOTONS),
-        None if opts.photons.is_some() || !open_ended => Some(scene.simulation.photons),
-        None => None,
-    };
-    let max = max_photons(scene);
-    if planned.is_some_and(|p| p > max) {
+    let (cap, max) = (photon_cap(scene, opts), max_photons(scene));
+    if cap > max {
         let c = scene.camera.as_ref().map_or([0, 0], |c| c.resolution);
         return Err(Error::Usage(format!(
-            "{} photons would give the {}×{} image's pixels more than 2^32 − 1 samples each \
+            "{cap} photons would give the {}×{} image's pixels more than 2^32 − 1 samples each \
              (one camera sample a photon, in turn over the pixels): at most {max} photons with the {} integrator",
-            planned.unwrap_or(0),
             c[0],
             c[1],
             scene.simulation.integrator.name()
@@ -341,15 +345,7 @@ pub fn simulate_controlled(
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
 
-    // A command-line accuracy or time target is obeyed: only a command-line photon count caps it
-    // (the scene file's `photons` is the default for runs without one).
-    let open_ended = opts.rel_error.is_some() || opts.time_s.is_some();
-    let cap = match (opts.batches, opts.photons) {
-        (Some((_, end)), _) => end * BATCH_PHOTONS,
-        (None, Some(p)) => p,
-        (None, None) if open_ended => max_photons(scene),
-        (None, None) => scene.simulation.photons,
-    };
+    let cap = photon_cap(scene, opts);
     let (first_batch, end_batch) = opts.batches.unwrap_or((0, cap.div_ceil(BATCH_PHOTONS)));
     let photons_in = |b: u64| BATCH_PHOTONS.min(cap - b * BATCH_PHOTONS);
     // This process traces batches `batch_at(0), batch_at(1), …`: its local sequence, merged in
@@ -363,7 +359,7 @@ pub fn simulate_controlled(
         .then(|| {
             RunProgress::new(
                 opts,
-                (cap != MAX_PHOTONS || opts.photons.is_some())
+                (cap != max_photons(scene) || opts.photons.is_some())
                     .then_some((cap - first_batch * BATCH_PHOTONS).div_ceil(shares)),
                 start,
             )
