@@ -67,6 +67,52 @@ pub fn sin_cos_turn(u: f32) -> (f32, f32) {
     (f32::from_bits(sin ^ ((q & 2) << 30)), f32::from_bits(cos ^ (((q + 1) & 2) << 30)))
 }
 
+/// Point `index` of a scrambled 2-D Sobol sequence (the (0,2)-sequence: van der Corput's radical
+/// inverse and Sobol's second dimension), each coordinate Owen-scrambled by `seed` with the hash
+/// of Burley 2020 ("Practical Hash-based Owen Scrambling", after Laine and Karras 2011). Each point
+/// is uniform on [0,1)² over the seeds, and the first 2^m points of one seed put one point in every
+/// cell of each 2^a × 2^(m−a) grid: a pixel's successive samples cover its footprint evenly.
+#[inline]
+pub fn owen_sobol_2d(index: u32, seed: u32) -> (f32, f32) {
+    let x = index.reverse_bits();
+    // Sobol's second dimension: direction numbers v₀ = 2³¹, v_{i+1} = v_i ^ (v_i >> 1).
+    let (mut y, mut v, mut bits) = (0u32, 1u32 << 31, index);
+    while bits != 0 {
+        if bits & 1 != 0 {
+            y ^= v;
+        }
+        v ^= v >> 1;
+        bits >>= 1;
+    }
+    // A coordinate's leading bits are scrambled by its seed's low bits: each coordinate's seed is
+    // a full-avalanche hash of `seed`, so those bits are unrelated between x and y (seeds that
+    // shared low bits put every point of a seed set on 16 of 256 cells).
+    let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+    (unit(owen_scramble(x, mix32(seed))), unit(owen_scramble(y, mix32(seed ^ 0x5BD1_E995))))
+}
+
+/// A 32-bit integer hash in which every input bit affects every output bit (Wellons's lowbias32).
+#[inline]
+fn mix32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+/// Nested uniform scrambling of the bits of `x`, most significant first (each bit flipped by a
+/// hash of the bits above it): the Laine–Karras hash on the reversed bits (Burley 2020, fig. 4).
+#[inline]
+fn owen_scramble(x: u32, seed: u32) -> u32 {
+    let mut v = x.reverse_bits().wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50_b47c);
+    v ^= v.wrapping_mul(0xb82f_1e52);
+    v ^= v.wrapping_mul(0xc7af_e638);
+    v ^= v.wrapping_mul(0x8d22_f6e6);
+    v.reverse_bits()
+}
+
 /// Cosine-weighted direction about unit `n`: p(ω) = cosθ/π (Malley's method via the concentric-free
 /// polar map: r = √u1, φ = 2πu2, z = √(1−u1)).
 #[inline]
@@ -170,6 +216,26 @@ mod tests {
         for (u, s, c) in [(0.0, 0.0, 1.0), (0.25, 1.0, 0.0), (0.5, 0.0, -1.0), (0.75, -1.0, 0.0), (1.0, 0.0, 1.0)] {
             let (ps, pc) = sin_cos_turn(u);
             assert!((ps - s).abs() < 1e-7 && (pc - c).abs() < 1e-7, "u {u}: ({ps}, {pc})");
+        }
+    }
+
+    /// The first 2^m points of a seed fill every cell of every 2^a × 2^(m−a) grid once (the
+    /// (0,2)-sequence's net property, which nested scrambling keeps), for m up to 8 and many seeds.
+    #[test]
+    fn scrambled_sobol_prefixes_are_nets() {
+        for seed in [0u32, 1, 7, 0xDEAD_BEEF, 12345] {
+            for m in 0..=8u32 {
+                let points: Vec<(f32, f32)> = (0..1u32 << m).map(|i| owen_sobol_2d(i, seed)).collect();
+                for a in 0..=m {
+                    let (nx, ny) = (1usize << a, 1usize << (m - a));
+                    let mut seen = vec![0u32; nx * ny];
+                    for &(x, y) in &points {
+                        assert!((0.0..1.0).contains(&x) && (0.0..1.0).contains(&y));
+                        seen[(y * ny as f32) as usize * nx + (x * nx as f32) as usize] += 1;
+                    }
+                    assert!(seen.iter().all(|&c| c == 1), "seed {seed}, 2^{m} points, {nx}×{ny} grid: {seen:?}");
+                }
+            }
         }
     }
 

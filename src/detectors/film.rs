@@ -112,6 +112,49 @@ impl CameraModel {
         self.width * self.height
     }
 
+    /// Columns and rows (inclusive ranges) of a rectangle of pixels that holds the image of the
+    /// convex hull of `points`, with a pixel's margin for rounding; None when it misses the
+    /// image or lies wholly behind the camera. A point behind or nearly in the camera's plane
+    /// (within 10⁻⁴ rad of it) while another is in front gives the whole image: the hull may then
+    /// reach any pixel.
+    pub fn pixel_box(&self, points: &[Vec3A]) -> Option<([usize; 2], [usize; 2])> {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let whole = ([0, self.width - 1], [0, self.height - 1]);
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        let (mut behind, mut grazing) = (0, 0);
+        for &p in points {
+            let v = (p - self.position).as_dvec3();
+            let z = v.dot(self.forward.as_dvec3());
+            if !(z > 0.0) {
+                behind += 1;
+                continue;
+            }
+            if !(z > 1e-4 * v.length()) {
+                grazing += 1;
+                continue;
+            }
+            let col = v.dot(self.column_axis.as_dvec3()) / z + 0.5 * w;
+            let row = 0.5 * h - v.dot(self.row_axis.as_dvec3()) / z;
+            lo = [lo[0].min(col), lo[1].min(row)];
+            hi = [hi[0].max(col), hi[1].max(row)];
+        }
+        if behind == points.len() {
+            return None;
+        }
+        if behind + grazing > 0 {
+            return Some(whole);
+        }
+        if !(hi[0] >= -1.0 && lo[0] <= w + 1.0 && hi[1] >= -1.0 && lo[1] <= h + 1.0) {
+            return None;
+        }
+        let span = |lo: f64, hi: f64, n: usize| {
+            let first = (lo.floor() - 1.0).max(0.0) as usize;
+            let last = ((hi.floor() + 1.0).max(0.0) as usize).min(n - 1);
+            [first.min(n - 1), last]
+        };
+        Some((span(lo[0], hi[0], self.width), span(lo[1], hi[1], self.height)))
+    }
+
     /// Unit direction through the point (u, v) ∈ [0,1)² of pixel `pixel`: a uniform point on the
     /// pixel's footprint on the unit-distance image plane, so the pixel's radiance estimate is
     /// simply L along the ray (see the module comment).
@@ -195,6 +238,9 @@ pub struct FilmBatch {
     pub samples: Vec<[f32; 3]>,
     /// Run-wide index of `samples[0]`.
     pub first_sample: u64,
+    /// The light tracer's camera samples of the emitters it sees directly (`EmitterView`): per
+    /// pixel, at most once a batch, the sums X, Y, Z, ΣY² of its samples and their count.
+    pub view: Vec<(u32, [f64; 4], u32)>,
     /// The splats reduced (`digest`): per touched pixel, in pixel order, its X, Y, Z and
     /// Σ_b S_b²/n_b of Y over the batch's film batches; the image's Σ_b S_b²/n_b; film batches.
     digest: Option<Digest>,
@@ -281,10 +327,10 @@ fn sort_by_pixel(splats: &mut Vec<Splat>) {
 
 /// The run's film: per pixel the exact sums (`exact`) of each transport batch's XYZ, and, per
 /// film batch b of n_b photons with pixel sums S_b, Σ S_b²/n_b for each pixel's Y and for the
-/// whole image's Y. Camera integrators add a second part: per pixel the sum of its own samples'
-/// values, ΣY² and the sample count; that part's pixel value is the samples' mean and its
-/// variance the sample variance over the count (pixels are independent there: each sample
-/// touches one pixel). Exact sums make the film the same for any grouping of its batches.
+/// whole image's Y. Camera integrators add a second part (and the light tracer, for the lamps it
+/// images from the camera, `EmitterView`): per pixel the sum of its own samples' values, ΣY² and
+/// the sample count; that part's pixel value is the samples' mean and its variance the sample
+/// variance over the count (pixels are independent there: each sample touches one pixel). Exact sums make the film the same for any grouping of its batches.
 pub struct Film {
     pub width: usize,
     pub height: usize,
@@ -397,7 +443,8 @@ impl Film {
         }
     }
 
-    /// Fewest samples any pixel has from a camera integrator (None for pure light tracing).
+    /// Fewest samples any pixel has in the camera part (None without one; the light tracer's
+    /// part samples only the pixels its lamps project into, `EmitterView`).
     pub fn min_samples_per_pixel(&self) -> Option<u32> {
         self.camera.as_ref().map(|c| c.count.iter().copied().min().unwrap_or(0))
     }
@@ -436,6 +483,19 @@ impl Film {
                         cam.sums[p].add(acc);
                         cam.count[p] += n;
                     }
+                }
+            }
+        }
+        if !b.view.is_empty() {
+            let pixels = self.width * self.height;
+            let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
+            for &(p, sums, n) in &b.view {
+                let p = p as usize;
+                // A pixel keeps its first ~4·10⁹ samples (a decision that ignores their values,
+                // so its mean stays unbiased); its count never wraps.
+                if let Some(count) = cam.count[p].checked_add(n) {
+                    cam.sums[p].add(sums);
+                    cam.count[p] = count;
                 }
             }
         }
@@ -659,6 +719,48 @@ mod tests {
         assert_eq!((a.photons, a.film_batches), (b.photons, b.film_batches));
         // Nearly all 5917 pixels were splatted, so every tile, the last partial one too, was added.
         assert!(a.pixels.iter().filter(|p| p.0[1] != ExactSum::default()).count() > 5000);
+    }
+
+    /// `pixel_box` holds every pixel through which a camera ray meets the triangle: random
+    /// triangles in front of, around and behind a tilted camera, each met by rays through
+    /// random points of the image.
+    #[test]
+    fn pixel_boxes_hold_every_pixel_that_sees_the_triangle() {
+        use glam::DVec3;
+        let cam = CameraModel::new(&Camera {
+            position: DVec3::new(0.3, -0.2, 0.1),
+            look_at: DVec3::new(1.0, 0.5, 3.0),
+            up: DVec3::Y,
+            fov_deg: 50.0,
+            resolution: [37, 23],
+        });
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
+        let mut uniform = || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+        let (mut seen, mut whole) = (0, 0);
+        for _ in 0..400 {
+            let tri: [Vec3A; 3] = std::array::from_fn(|_| {
+                Vec3A::new(uniform() * 6.0 - 2.0, uniform() * 6.0 - 2.5, uniform() * 8.0 - 2.0)
+            });
+            let b = cam.pixel_box(&tri);
+            if b == Some(([0, cam.width - 1], [0, cam.height - 1])) {
+                whole += 1;
+            }
+            for _ in 0..2000 {
+                let pixel = (uniform() * cam.pixels() as f32) as usize % cam.pixels();
+                let dir = cam.ray_direction(pixel, uniform(), uniform());
+                if crate::geometry::intersect_triangle(cam.position, dir, f32::INFINITY, &tri).is_some() {
+                    seen += 1;
+                    let ([c0, c1], [r0, r1]) = b.expect("a triangle a ray meets has a box");
+                    let (row, col) = (pixel / cam.width, pixel % cam.width);
+                    assert!(
+                        (c0..=c1).contains(&col) && (r0..=r1).contains(&row),
+                        "{tri:?}: pixel {pixel} outside {b:?}"
+                    );
+                }
+            }
+        }
+        // The draw met many triangles, some of them reaching behind the camera.
+        assert!(seen > 10_000 && whole > 10, "{seen} rays met a triangle; {whole} whole-image boxes");
     }
 
     /// A read with held batches is refused rather than missing them.

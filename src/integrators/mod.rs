@@ -5,4 +5,5 @@
 
 pub mod batch;
 pub mod camera;
+pub mod emitter_view;
 pub mod particle;

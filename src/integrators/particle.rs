@@ -11,6 +11,7 @@ use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
+use crate::integrators::emitter_view::EmitterView;
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
 use crate::sampling::Sampler;
@@ -78,6 +79,8 @@ pub struct Kernel<'a> {
     pub cancel: Option<&'a AtomicBool>,
     /// Per surface, its material's run-wide constants (`Prepared::for_scene`).
     pub prepared: &'a [Prepared],
+    /// The emitters the light tracer images from the camera (`EmitterView`), if any.
+    pub view: Option<&'a EmitterView>,
 }
 
 /// Under this seed, test builds panic in batch 3 (to test that a failed batch fails the run).
@@ -129,6 +132,9 @@ impl Kernel<'_> {
         if let Some(f) = &film {
             tallies.counters.shadow_rays = f.shadow_rays;
             tallies.counters.splats = f.splats.len() as u64;
+        }
+        if let (Some(view), Some(cam), Some(f)) = (self.view, self.camera, film.as_mut()) {
+            view.trace_batch(self.scene, self.emitter, cam, batch, count, f, &mut tallies.counters, self.cancel);
         }
         if let Some(image) = self.image {
             // The camera samples share the batch's indices, so a stop at a batch boundary stops both.
@@ -326,8 +332,12 @@ impl Kernel<'_> {
             out.counters.wavelength_samples += lambda.is_finite() as u64;
             let mut hero = if HERO { Hero::new(self.emitter, &birth, range) } else { Hero::default() };
             let mut weight = 1.0f64;
-            if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
+            if let (true, Some(film)) = (CAMERA, film.as_deref_mut()) {
                 film.photon = photon;
+            }
+            // The emission splat, unless the camera images this light itself (`EmitterView`).
+            let splat_birth = CAMERA && !self.view.is_some_and(|v| v.from_camera(birth.light));
+            if let (true, Some(cam), Some(film)) = (splat_birth, self.camera, film.as_deref_mut()) {
                 let colour = if HERO { hero.emission_xyz() } else { birth.xyz };
                 let value = |w| colour * self.emitter.direction_pdf(birth.light, birth.axis, w);
                 let start = RayEnd { p: birth.point, err: birth.point_err, n: birth.normal, prim: birth.prim };
@@ -906,7 +916,7 @@ fn splat_seen(
 
 /// An index-matched smooth dielectric boundary: a connection to the camera passes it (nothing
 /// reflects or bends there).
-fn is_passable(m: &Material) -> bool {
+pub fn is_passable(m: &Material) -> bool {
     match m {
         Material::Dielectric { ior, outside_ior, roughness, scatter: None, .. } => {
             !roughness.is_rough() && ior == outside_ior

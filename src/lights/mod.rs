@@ -176,6 +176,14 @@ impl Emitter {
         }
     }
 
+    /// Whether light `light` emits into no dielectric from any of its points.
+    pub fn emits_into_the_open(&self, light: usize) -> bool {
+        match &self.lights[light].medium {
+            LightMedium::Uniform(m) => m.is_none(),
+            LightMedium::PerTriangle(media) => media.iter().all(|m| m.is_none()),
+        }
+    }
+
     /// Samples one photon from the uniform numbers `u` (see `EmitSample`). With `SPECTRAL` false
     /// the wavelength number is ignored.
     #[inline]

@@ -794,7 +794,9 @@ pub fn estimates<'a>(scene: &'a Scene, r: &RunResult) -> Result<RunEstimates<'a>
                 "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
             );
         }
-        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
+        // The light tracer's camera part samples only the pixels its lamps project into.
+        let every_pixel_sampled = r.integrator != crate::integrators::camera::Integrator::Light;
+        if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2 && every_pixel_sampled) {
             warnings.push(format!(
                 "some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0"
             ));

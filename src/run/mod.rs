@@ -10,6 +10,7 @@ use crate::detectors::film::{CameraModel, Film};
 use crate::detectors::tally::Tallies;
 use crate::error::Error;
 use crate::integrators::camera::{ImageKernel, Integrator};
+use crate::integrators::emitter_view::EmitterView;
 use crate::integrators::particle::{Estimator, Kernel, TransportOptions};
 use crate::lights::Emitter;
 use crate::scene::Scene;
@@ -317,6 +318,7 @@ pub fn simulate_controlled(
         _ => None,
     };
     let light_camera = camera.as_ref().filter(|_| integrator == Integrator::Light);
+    let view = light_camera.and_then(|c| EmitterView::new(scene, &emitter, c));
     // The pilot's time is part of the run's.
     let start = Instant::now();
     let (transport, pilot) = match opts.transport.estimator {
@@ -341,6 +343,7 @@ pub fn simulate_controlled(
         options: transport,
         cancel: Some(&quit),
         prepared: &prepared,
+        view: view.as_ref(),
     };
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
@@ -604,9 +607,12 @@ pub fn choose_estimator(
 ) -> EstimatorPilot {
     use rayon::prelude::*;
     let part = PILOT_ROUND / PILOT_PARTS;
+    // The light tracer's image as a run makes it, lamps in view imaged from the camera.
+    let view = camera.and_then(|c| EmitterView::new(scene, emitter, c));
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
-        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared };
+        let view = view.as_ref();
+        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared, view };
         let mut total = Tallies::for_scene(scene);
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;
