@@ -19,28 +19,14 @@ use photon::run::{apply_options, simulate, RunOptions};
 
 /// Renders `toml` with `integrator` and returns the image and its mean Y with standard error.
 fn render(toml: &str, integrator: Integrator, photons: u64, seed: u64) -> (Image, (f64, f64), f64) {
-    render_with(toml, integrator, photons, seed, None)
-}
-
-/// `render` with the particle tracer's estimator set (None: `auto`).
-fn render_with(
-    toml: &str,
-    integrator: Integrator,
-    photons: u64,
-    seed: u64,
-    estimator: Option<photon::integrators::particle::Estimator>,
-) -> (Image, (f64, f64), f64) {
     let mut s = scene(toml);
-    let mut opts = RunOptions {
+    let opts = RunOptions {
         photons: Some(photons),
         seed: Some(seed),
         threads: Some(2),
         integrator: Some(integrator),
         ..Default::default()
     };
-    if let Some(e) = estimator {
-        opts.transport.estimator = e;
-    }
 
     let chosen = apply_options(&mut s, &opts).unwrap();
     let r = simulate(&s, &opts, &chosen, &AtomicBool::new(false)).unwrap();
@@ -190,11 +176,7 @@ fn smooth_plastic_wall_path_and_bdpt_agree_and_the_light_tracer_agrees_off_it() 
     assert!(toml.contains("cornell_white.csv\" }\nior = 1.5\n\n") && toml.contains("roughness = 0.1"));
     let (path, path_mean, _) = render(&toml, Integrator::Path, 1_000_000, 14);
     let (bdpt, bdpt_mean, _) = render(&toml, Integrator::Bdpt, 1_000_000, 14);
-    // Expected-value weights (what `auto` chose here until the lamp was imaged from the camera;
-    // it now picks analog survival): the floor's bottom rows, a few cm from the pinhole, get rare
-    // huge splats, and analog photons make that tail heavier than an 8×8 block's z-score allows.
-    let expected = photon::integrators::particle::Estimator::Expected;
-    let (light, _, _) = render_with(&toml, Integrator::Light, 2_000_000, 14, Some(expected));
+    let (light, _, _) = render(&toml, Integrator::Light, 2_000_000, 14);
     let z = (path_mean.0 - bdpt_mean.0) / (path_mean.1.powi(2) + bdpt_mean.1.powi(2)).sqrt();
     assert!(z.abs() < 4.0, "mean Y: path {path_mean:?} vs BDPT {bdpt_mean:?}: z = {z:.2}");
     let hits = primary_hits(&toml);

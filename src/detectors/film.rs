@@ -113,7 +113,7 @@ impl CameraModel {
     }
 
     /// Columns and rows (inclusive ranges) of a rectangle of pixels that holds the image of the
-    /// convex hull of `points`, with a pixel's margin for rounding; None when it misses the
+    /// convex hull of `points`, with a margin for rounding; None when it misses the
     /// image or lies wholly behind the camera. A point behind or nearly in the camera's plane
     /// (within 10⁻⁴ rad of it) while another is in front gives the whole image: the hull may then
     /// reach any pixel.
@@ -144,15 +144,23 @@ impl CameraModel {
         if behind + grazing > 0 {
             return Some(whole);
         }
-        if !(hi[0] >= -1.0 && lo[0] <= w + 1.0 && hi[1] >= -1.0 && lo[1] <= h + 1.0) {
-            return None;
-        }
-        let span = |lo: f64, hi: f64, n: usize| {
-            let first = (lo.floor() - 1.0).max(0.0) as usize;
-            let last = ((hi.floor() + 1.0).max(0.0) as usize).min(n - 1);
+        // A pixel's margin, plus what a ray direction's f32 rounding (< 10⁻⁶ rad, up to
+        // (1 + tan²) image-plane units a radian off axis) spans in pixels: with a field of view of
+        // hundredths of a degree that is more than a pixel.
+        let margin = |half: f32, n: f64| {
+            let half = half as f64;
+            1.0 + (1e-6 * (1.0 + 2.0 * half * half) * n / (2.0 * half)).ceil()
+        };
+        let span = |lo: f64, hi: f64, n: usize, margin: f64| {
+            let first = (lo.floor() - margin).max(0.0) as usize;
+            let last = ((hi.floor() + margin).max(0.0) as usize).min(n - 1);
             [first.min(n - 1), last]
         };
-        Some((span(lo[0], hi[0], self.width), span(lo[1], hi[1], self.height)))
+        let (mx, my) = (margin(self.half_w, w), margin(self.half_h, h));
+        if !(hi[0] >= -mx && lo[0] <= w + mx && hi[1] >= -my && lo[1] <= h + my) {
+            return None;
+        }
+        Some((span(lo[0], hi[0], self.width, mx), span(lo[1], hi[1], self.height, my)))
     }
 
     /// Unit direction through the point (u, v) ∈ [0,1)² of pixel `pixel`: a uniform point on the
@@ -239,7 +247,8 @@ pub struct FilmBatch {
     /// Run-wide index of `samples[0]`.
     pub first_sample: u64,
     /// The light tracer's camera samples of the emitters it sees directly (`EmitterView`): per
-    /// pixel, at most once a batch, the sums X, Y, Z, ΣY² of its samples and their count.
+    /// entry of the film's listed camera part (`Film::with_listed_camera_pixels`), at most once
+    /// a batch, the sums X, Y, Z, ΣY² of its samples and their count.
     pub view: Vec<(u32, [f64; 4], u32)>,
     /// The splats reduced (`digest`): per touched pixel, in pixel order, its X, Y, Z and
     /// Σ_b S_b²/n_b of Y over the batch's film batches; the image's Σ_b S_b²/n_b; film batches.
@@ -330,7 +339,8 @@ fn sort_by_pixel(splats: &mut Vec<Splat>) {
 /// whole image's Y. Camera integrators add a second part (and the light tracer, for the lamps it
 /// images from the camera, `EmitterView`): per pixel the sum of its own samples' values, ΣY² and
 /// the sample count; that part's pixel value is the samples' mean and its variance the sample
-/// variance over the count (pixels are independent there: each sample touches one pixel). Exact sums make the film the same for any grouping of its batches.
+/// variance over the count (pixels are independent there: each sample touches one pixel).
+/// Exact sums make the film the same for any grouping of its batches.
 pub struct Film {
     pub width: usize,
     pub height: usize,
@@ -369,17 +379,30 @@ impl PixelSums {
 
 #[derive(Clone)]
 struct CameraPart {
-    /// XYZ and ΣY² of the pixel's samples.
+    /// The pixels it covers, ascending: entry k is pixel `listed[k]` (the light tracer's lamps
+    /// in view), or None for every pixel, entry p being pixel p (the camera integrators).
+    listed: Option<Vec<u32>>,
+    /// XYZ and ΣY² of each entry's samples.
     sums: Vec<PixelSums>,
     count: Vec<u32>,
 }
 
 impl CameraPart {
     fn new(pixels: usize) -> Self {
-        CameraPart { sums: vec![PixelSums::default(); pixels], count: vec![0; pixels] }
+        CameraPart { listed: None, sums: vec![PixelSums::default(); pixels], count: vec![0; pixels] }
     }
 
-    /// (mean XYZ, variance of the mean Y) of pixel `p`; no samples give zeros, one sample no variance.
+    fn listed(pixels: Vec<u32>) -> Self {
+        let n = pixels.len();
+        CameraPart { listed: Some(pixels), sums: vec![PixelSums::default(); n], count: vec![0; n] }
+    }
+
+    /// (pixel, entry) pairs in increasing pixel order.
+    fn entries(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (0..self.count.len()).map(|k| (self.listed.as_ref().map_or(k, |l| l[k] as usize), k))
+    }
+
+    /// (mean XYZ, variance of the mean Y) of entry `p`; no samples give zeros, one sample no variance.
     fn pixel(&self, p: usize) -> ([f64; 3], f64) {
         let n = self.count[p] as f64;
         if n == 0.0 {
@@ -404,9 +427,13 @@ pub struct FilmState {
     pub image_y_sq_over_n: ExactSum,
     pub photons: u64,
     pub film_batches: u64,
-    /// The camera integrators' part: per pixel sums and sample counts.
-    pub camera: Option<(Vec<PixelSums>, Vec<u32>)>,
+    /// The camera part: the pixels it covers (None: all; the light tracer's lamps in view: those
+    /// listed), and per covered pixel its sums and sample count.
+    pub camera: Option<CameraState>,
 }
+
+/// A film's camera part as a state holds it: (listed pixels or None for all, sums, counts).
+pub type CameraState = (Option<Vec<u32>>, Vec<PixelSums>, Vec<u32>);
 
 /// The finished image: per pixel linear XYZ and RGB radiance, and Y's variance.
 pub struct Image {
@@ -443,8 +470,14 @@ impl Film {
         }
     }
 
-    /// Fewest samples any pixel has in the camera part (None without one; the light tracer's
-    /// part samples only the pixels its lamps project into, `EmitterView`).
+    /// A film whose camera part covers the pixels `listed` (ascending): the light tracer's lamps
+    /// in view (`EmitterView`), whose batches send their samples by entry (`FilmBatch::view`).
+    pub fn with_listed_camera_pixels(mut self, listed: Vec<u32>) -> Self {
+        self.camera = Some(CameraPart::listed(listed));
+        self
+    }
+
+    /// Fewest samples any pixel of the camera part has (None without one).
     pub fn min_samples_per_pixel(&self) -> Option<u32> {
         self.camera.as_ref().map(|c| c.count.iter().copied().min().unwrap_or(0))
     }
@@ -453,7 +486,8 @@ impl Film {
     /// taken from `b` and held until `MERGE_GROUP` batches are (`flush`); read the film through
     /// `flushed`, or after `flush`.
     pub fn merge(&mut self, b: &mut FilmBatch, photons: u64) {
-        if !b.samples.is_empty() {
+        // A camera integrator's samples, one a pixel in turn (its film's part covers every pixel).
+        if !b.samples.is_empty() && self.camera.as_ref().is_none_or(|c| c.listed.is_none()) {
             let pixels = self.width * self.height;
             let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
             let value = |v: &[f32; 3]| {
@@ -486,16 +520,15 @@ impl Film {
                 }
             }
         }
-        if !b.view.is_empty() {
-            let pixels = self.width * self.height;
-            let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
-            for &(p, sums, n) in &b.view {
-                let p = p as usize;
+        // The light tracer's lamps in view, by entry of the listed part the film was made with.
+        if let Some(cam) = self.camera.as_mut().filter(|c| c.listed.is_some()) {
+            for &(k, sums, n) in &b.view {
+                let k = k as usize;
                 // A pixel keeps its first ~4·10⁹ samples (a decision that ignores their values,
                 // so its mean stays unbiased); its count never wraps.
-                if let Some(count) = cam.count[p].checked_add(n) {
-                    cam.sums[p].add(sums);
-                    cam.count[p] = count;
+                if let Some(count) = cam.count.get(k).and_then(|c| c.checked_add(n)) {
+                    cam.sums[k].add(sums);
+                    cam.count[k] = count;
                 }
             }
         }
@@ -568,13 +601,19 @@ impl Film {
         self.image_y_sq_over_n.add_sum(&o.image_y_sq_over_n);
         self.photons += o.photons;
         self.film_batches += o.film_batches;
-        if let Some(oc) = &o.camera {
-            let cam = self.camera.get_or_insert_with(|| CameraPart::new(oc.count.len()));
-            for (a, b) in cam.sums.iter_mut().zip(&oc.sums) {
-                a.add_sums(b);
-            }
-            for (a, b) in cam.count.iter_mut().zip(&oc.count) {
-                *a = a.checked_add(*b).ok_or("a pixel has more than 2³² camera samples")?;
+        match (&mut self.camera, &o.camera) {
+            (_, None) => {}
+            (None, Some(oc)) => self.camera = Some(oc.clone()),
+            (Some(cam), Some(oc)) => {
+                if cam.listed != oc.listed {
+                    return Err("the films' camera parts cover different pixels".into());
+                }
+                for (a, b) in cam.sums.iter_mut().zip(&oc.sums) {
+                    a.add_sums(b);
+                }
+                for (a, b) in cam.count.iter_mut().zip(&oc.count) {
+                    *a = a.checked_add(*b).ok_or("a pixel has more than 2³² camera samples")?;
+                }
             }
         }
         Ok(())
@@ -590,14 +629,27 @@ impl Film {
             image_y_sq_over_n: self.image_y_sq_over_n,
             photons: self.photons,
             film_batches: self.film_batches,
-            camera: self.camera.as_ref().map(|c| (c.sums.clone(), c.count.clone())),
+            camera: self.camera.as_ref().map(|c| (c.listed.clone(), c.sums.clone(), c.count.clone())),
         }
     }
 
     /// The film a state describes; None if its arrays do not fit its size.
     pub fn from_state(s: FilmState) -> Option<Film> {
         let pixels = s.width.checked_mul(s.height)?;
-        if s.pixels.len() != pixels || s.camera.as_ref().is_some_and(|(a, c)| a.len() != pixels || c.len() != pixels) {
+        // A listed part's pixels strictly ascending and on the film; a full one covers it.
+        let fits = |(listed, sums, count): &CameraState| {
+            let entries = match listed {
+                None => pixels,
+                Some(l) => {
+                    if !(l.windows(2).all(|w| w[0] < w[1]) && l.last().is_none_or(|&p| (p as usize) < pixels)) {
+                        return false;
+                    }
+                    l.len()
+                }
+            };
+            sums.len() == entries && count.len() == entries
+        };
+        if s.pixels.len() != pixels || s.camera.as_ref().is_some_and(|c| !fits(c)) {
             return None;
         }
         let mut film = Film::new(s.width, s.height);
@@ -605,7 +657,7 @@ impl Film {
         film.image_y_sq_over_n = s.image_y_sq_over_n;
         film.photons = s.photons;
         film.film_batches = s.film_batches;
-        film.camera = s.camera.map(|(sums, count)| CameraPart { sums, count });
+        film.camera = s.camera.map(|(listed, sums, count)| CameraPart { listed, sums, count });
         Some(film)
     }
 
@@ -636,8 +688,8 @@ impl Film {
         let (mut mean, mut var) = (total / n * emitted_w / pixels, var * (emitted_w / pixels).powi(2));
         if let Some(cam) = &self.camera {
             // Mean of independent pixel means: variance Σ var_p / P².
-            for p in 0..self.width * self.height {
-                let (m, v) = cam.pixel(p);
+            for (_, k) in cam.entries() {
+                let (m, v) = cam.pixel(k);
                 mean += m[1] / pixels;
                 var += v / (pixels * pixels);
             }
@@ -654,14 +706,18 @@ impl Film {
         let mut xyz = Array2::zeros((pixels, 3));
         let mut rgb = Array3::zeros((self.height, self.width, 3));
         let mut y_var = vec![0.0f32; pixels];
+        // The camera part's entries, in pixel order as the pixels are visited.
+        let mut camera = self.camera.as_ref().map(|c| (c, c.entries().peekable()));
         for p in 0..pixels {
             let [x, y, z, y_sq_over_n] = self.pixels[p].values();
             let mut sum = [x * w, y * w, z * w];
             let mut var = self.variance_of_mean(y, y_sq_over_n) * emitted_w * emitted_w;
-            if let Some(cam) = &self.camera {
-                let (m, v) = cam.pixel(p);
-                sum = [sum[0] + m[0], sum[1] + m[1], sum[2] + m[2]];
-                var += v;
+            if let Some((cam, entries)) = camera.as_mut() {
+                if let Some((_, k)) = entries.next_if(|&(q, _)| q == p) {
+                    let (m, v) = cam.pixel(k);
+                    sum = [sum[0] + m[0], sum[1] + m[1], sum[2] + m[2]];
+                    var += v;
+                }
             }
             let v = Vec3A::new(sum[0] as f32, sum[1] as f32, sum[2] as f32);
             xyz[[p, 0]] = v.x;
@@ -761,6 +817,32 @@ mod tests {
         }
         // The draw met many triangles, some of them reaching behind the camera.
         assert!(seen > 10_000 && whole > 10, "{seen} rays met a triangle; {whole} whole-image boxes");
+    }
+
+    /// A camera part listing some pixels (the light tracer's lamps in view) takes samples by
+    /// entry, images them at its pixels only, survives its state, and refuses lists that are
+    /// not strictly ascending on the film, and merges with a part listing other pixels.
+    #[test]
+    fn listed_camera_parts_image_their_pixels_and_round_trip() {
+        let mut film = Film::new(8, 4).with_listed_camera_pixels(vec![3, 9, 30]);
+        let mut b = FilmBatch { view: vec![(0, [1.0, 2.0, 3.0, 4.0], 2), (2, [0.5, 0.5, 0.5, 0.25], 1)], ..FilmBatch::default() };
+        film.merge(&mut b, 10);
+        let img = film.flushed().image(1.0);
+        assert_eq!((img.xyz[[3, 1]], img.xyz[[30, 1]], img.xyz[[9, 1]]), (1.0, 0.5, 0.0));
+        assert_eq!((img.xyz[[3, 0]], img.xyz[[3, 2]]), (0.5, 1.5));
+        assert_eq!(img.xyz.column(1).iter().filter(|&&y| y != 0.0).count(), 2);
+        let again = Film::from_state(film.state()).expect("its own state");
+        assert_eq!(again.image(1.0).xyz, img.xyz);
+        for bad in [vec![3, 3, 30], vec![9, 3, 30], vec![3, 9, 32]] {
+            let mut s = film.state();
+            s.camera.as_mut().unwrap().0 = Some(bad);
+            assert!(Film::from_state(s).is_none());
+        }
+        let other = Film::new(8, 4).with_listed_camera_pixels(vec![3, 9, 31]);
+        assert!(film.merge_run(&other).is_err());
+        let same = Film::from_state(film.state()).unwrap();
+        film.merge_run(&same).unwrap();
+        assert_eq!(film.image(1.0).xyz[[3, 1]], 1.0);
     }
 
     /// A read with held batches is refused rather than missing them.

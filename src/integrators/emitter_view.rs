@@ -18,9 +18,16 @@
 //! Samples. Only pixels an eligible light projects into are sampled (`pixels`, M of them). The
 //! run's samples form one sequence, sample k going to listed pixel k mod M: batch 0 takes M of
 //! them first, so every listed pixel has a sample however short the run, and each batch of n
-//! photons takes ⌈n/VIEW_EVERY⌉ more. They use their own random stream (stream 2), so the
-//! photons' numbers are the same with or without the view. A pixel's samples are independent
-//! and uniform over its footprint: its mean and variance are the film's camera part's.
+//! photons takes ⌈n/VIEW_EVERY⌉ more. A pixel's samples, in run order, are the points of one
+//! scrambled 2-D Sobol sequence over its footprint (`owen_sobol_2d`, seeded by the run's seed
+//! and the pixel; the photons' random numbers are untouched): each point is uniform, so the
+//! pixel's mean is unbiased, and together they cover the footprint evenly, so a lamp's edge
+//! pixels vary far less than with independent points. The film's camera part keeps their mean
+//! and the variance of independent samples over their count, which for such points is usually
+//! larger than the true one (Owen's bound allows up to 3× for 2-D nets).
+//!
+//! A sample that comes out non-finite (a lamp whose radiance overflows f32) is counted as black,
+//! as the camera integrators' samples are.
 
 use glam::Vec3A;
 
@@ -107,8 +114,14 @@ impl EmitterView {
         self.from_camera[light]
     }
 
+    /// The pixels it samples, ascending: the film's listed camera part
+    /// (`Film::with_listed_camera_pixels`), whose entries `FilmBatch::view` refers to.
+    pub fn pixels(&self) -> &[u32] {
+        &self.pixels
+    }
+
     /// The samples of transport batch `batch` of `count` photons, summed per pixel into
-    /// `film.view`; their rays are added to `counters`. Ends early, to be discarded, once
+    /// `film.view` (by the pixel's place in `pixels`); their rays are added to `counters`. Ends early, to be discarded, once
     /// `cancel` is set.
     #[allow(clippy::too_many_arguments)]
     pub fn trace_batch(
@@ -130,33 +143,36 @@ impl EmitterView {
         let per_batch = BATCH_PHOTONS.div_ceil(VIEW_EVERY) as u128;
         let first = if batch == 0 { 0 } else { m as u128 + batch as u128 * per_batch };
         let run_seed = scene.simulation.seed;
-        // Entry k mod M of this batch's list is sample k's pixel (consecutive samples take
-        // distinct pixels); its sums are accumulated in place.
-        let pixel_of = |k: u64| self.pixels[((first + k as u128) % m as u128) as usize];
+        // The batch's list has one entry per pixel it samples, accumulated in place: sample k's
+        // is entry k mod M (consecutive samples take distinct pixels).
         let slots = samples.min(m);
+        // Sample k is the run's sample g = first + k: listed pixel g mod M, the (g div M)-th
+        // point of that pixel's sequence (wrapping at 2³², past the ~4·10⁹ samples a pixel keeps).
+        let (mut listed, mut point) = ((first % m as u128) as usize, (first / m as u128) as u32);
         film.view.clear();
-        film.view.extend((0..slots).map(|k| (pixel_of(k), [0.0f64; 4], 0u32)));
+        film.view.extend((0..slots as usize).map(|k| (((listed + k) % m as usize) as u32, [0.0f64; 4], 0u32)));
+        let mut slot = 0usize;
         for k in 0..samples {
             if cancelled(cancel, k) {
                 return;
             }
-            let pixel = pixel_of(k);
-            // The pixel's (g div M)-th point, g = first + k its place in the run's sequence: a
-            // pixel's samples in run order walk one scrambled sequence, which covers its
-            // footprint evenly (a lamp's edge pixels vary far less than with independent
-            // points). The number passes 2³² only beyond the samples a pixel keeps (`Film`).
-            let q = ((first + k as u128) / m as u128) as u32;
-            let (u, v) = owen_sobol_2d(q, pixel_seed(run_seed, pixel));
+            let pixel = self.pixels[listed];
+            let (u, v) = owen_sobol_2d(point, pixel_seed(run_seed, pixel));
+            listed += 1;
+            if listed == m as usize {
+                (listed, point) = (0, point.wrapping_add(1));
+            }
             let dir = camera.ray_direction(pixel as usize, u, v);
             counters.rays += 1;
             let xyz = self.emission_seen(geo, emitter, camera.position, dir);
             let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
             let (x, y, z) = (xyz.x as f64, xyz.y as f64, xyz.z as f64);
-            let (_, acc, n) = &mut film.view[(k % m) as usize];
+            let (_, acc, n) = &mut film.view[slot];
             for (a, value) in acc.iter_mut().zip([x, y, z, y * y]) {
                 *a += value;
             }
             *n += 1;
+            slot = if slot + 1 == slots as usize { 0 } else { slot + 1 };
         }
     }
 

@@ -79,8 +79,12 @@ pub struct Kernel<'a> {
     pub cancel: Option<&'a AtomicBool>,
     /// Per surface, its material's run-wide constants (`Prepared::for_scene`).
     pub prepared: &'a [Prepared],
-    /// The emitters the light tracer images from the camera (`EmitterView`), if any.
+    /// The emitters the light tracer images from the camera (`EmitterView`), if any: their
+    /// emission splats are skipped.
     pub view: Option<&'a EmitterView>,
+    /// Whether batches also trace the view's camera samples (the estimator pilot leaves them
+    /// out: they are the same under either estimator, and in the film's absolute units).
+    pub view_samples: bool,
 }
 
 /// Under this seed, test builds panic in batch 3 (to test that a failed batch fails the run).
@@ -133,7 +137,7 @@ impl Kernel<'_> {
             tallies.counters.shadow_rays = f.shadow_rays;
             tallies.counters.splats = f.splats.len() as u64;
         }
-        if let (Some(view), Some(cam), Some(f)) = (self.view, self.camera, film.as_mut()) {
+        if let (true, Some(view), Some(cam), Some(f)) = (self.view_samples, self.view, self.camera, film.as_mut()) {
             view.trace_batch(self.scene, self.emitter, cam, batch, count, f, &mut tallies.counters, self.cancel);
         }
         if let Some(image) = self.image {

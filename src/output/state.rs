@@ -10,7 +10,7 @@
 //! | 16 | magic `photon-state\n` and three zero bytes |
 //! | 4 | format version (u32) |
 //! | 4 + n | header length n (u32), then the header: UTF-8 JSON, `StateHeader` |
-//! | … | body: 12 counts (u64: photons, batches, scatterings, scatterings², eight work counters), trace seconds (f64), escaped and truncated (sums), the channel count (u32) and per channel its rows (u64) and each row's Σx, Σx², Σ_b S_b²/n_b; then 0 or 1 (u8) and the film: width, height, photons, film batches (u64), the image's Σ_b S_b²/n_b, per pixel X, Y, Z, Y²-term; then 0 or 1 (u8) and the camera part: per pixel X, Y, Z, ΣY², then per pixel its sample count (u32) |
+//! | … | body: 12 counts (u64: photons, batches, scatterings, scatterings², eight work counters), trace seconds (f64), escaped and truncated (sums), the channel count (u32) and per channel its rows (u64) and each row's Σx, Σx², Σ_b S_b²/n_b; then 0 or 1 (u8) and the film: width, height, photons, film batches (u64), the image's Σ_b S_b²/n_b, per pixel X, Y, Z, Y²-term; then 0, 1 or 2 (u8) and the camera part: with 2 (the light tracer's lamps in view) its pixel count (u64) and pixels (u32, ascending), then per pixel (every pixel with 1) X, Y, Z, ΣY², then per pixel its sample count (u32) |
 //! | 8 | FNV-1a 64 of every byte before it |
 //!
 //! A sum is 28 bytes (`ExactSum::to_bytes`). Reading checks the magic, version, length and
@@ -34,7 +34,9 @@ use crate::scene::Scene;
 /// The state file's name in a part's output folder.
 pub const STATE_FILE: &str = "state.photon";
 const MAGIC: &[u8; 16] = b"photon-state\n\0\0\0";
-pub const FORMAT_VERSION: u32 = 1;
+/// 2: the light tracer's lamps in view are in the film's camera part (`EmitterView`), not its
+/// splats; a version-1 part's lamp would be counted twice beside them.
+pub const FORMAT_VERSION: u32 = 2;
 /// Largest header accepted: a corrupt length must not allocate gigabytes.
 const MAX_HEADER_BYTES: u32 = 1 << 20;
 
@@ -180,8 +182,17 @@ pub fn encode(scene: &Scene, r: &RunResult) -> Result<Vec<u8>, Error> {
             put_pixels(&mut w, &f.pixels);
             match &f.camera {
                 None => w.push(0),
-                Some((sums, count)) => {
-                    w.push(1);
+                Some((listed, sums, count)) => {
+                    match listed {
+                        None => w.push(1),
+                        Some(l) => {
+                            w.push(2);
+                            w.extend_from_slice(&(l.len() as u64).to_le_bytes());
+                            for p in l {
+                                w.extend_from_slice(&p.to_le_bytes());
+                            }
+                        }
+                    }
                     put_pixels(&mut w, sums);
                     for n in count {
                         w.extend_from_slice(&n.to_le_bytes());
@@ -367,13 +378,25 @@ fn decode(bytes: &[u8]) -> Result<Decoded, String> {
             let pixel_sums = r.pixels(pixels, "the film's pixels")?;
             let camera = match r.u8("the camera-part flag")? {
                 0 => None,
-                1 => {
-                    let sums = r.pixels(pixels, "the camera part's pixels")?;
+                flag @ (1 | 2) => {
+                    let listed = if flag == 2 {
+                        let at = r.at;
+                        let n = r.u64("the camera part's pixel count")?;
+                        if n > pixels as u64 {
+                            return Err(format!("the camera part at byte {at} lists {n} pixels, more than the film's"));
+                        }
+                        let l = (0..n).map(|_| r.u32("the camera part's pixel list")).collect::<Result<Vec<_>, _>>()?;
+                        Some(l)
+                    } else {
+                        None
+                    };
+                    let entries = listed.as_ref().map_or(pixels, |l| l.len());
+                    let sums = r.pixels(entries, "the camera part's pixels")?;
                     let count =
-                        (0..pixels).map(|_| r.u32("the camera part's counts")).collect::<Result<Vec<_>, _>>()?;
-                    Some((sums, count))
+                        (0..entries).map(|_| r.u32("the camera part's counts")).collect::<Result<Vec<_>, _>>()?;
+                    Some((listed, sums, count))
                 }
-                f => return Err(format!("the camera-part flag is {f}, not 0 or 1")),
+                f => return Err(format!("the camera-part flag is {f}, not 0, 1 or 2")),
             };
             Some(FilmState {
                 width: width as usize,

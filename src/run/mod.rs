@@ -344,9 +344,16 @@ pub fn simulate_controlled(
         cancel: Some(&quit),
         prepared: &prepared,
         view: view.as_ref(),
+        view_samples: true,
     };
     let hero = kernel.uses_hero();
-    let mut film = camera.as_ref().map(|c| Film::new(c.width, c.height));
+    let mut film = camera.as_ref().map(|c| {
+        let film = Film::new(c.width, c.height);
+        match &view {
+            Some(v) => film.with_listed_camera_pixels(v.pixels().to_vec()),
+            None => film,
+        }
+    });
 
     let cap = photon_cap(scene, opts);
     let (first_batch, end_batch) = opts.batches.unwrap_or((0, cap.div_ceil(BATCH_PHOTONS)));
@@ -607,12 +614,14 @@ pub fn choose_estimator(
 ) -> EstimatorPilot {
     use rayon::prelude::*;
     let part = PILOT_ROUND / PILOT_PARTS;
-    // The light tracer's image as a run makes it, lamps in view imaged from the camera.
+    // The light-traced image without the lamps a run images from the camera: their camera
+    // samples do not depend on the estimator, and their splats' noise is not in a run's image.
     let view = camera.and_then(|c| EmitterView::new(scene, emitter, c));
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
         let view = view.as_ref();
-        let kernel = Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared, view };
+        let kernel =
+            Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared, view, view_samples: false };
         let mut total = Tallies::for_scene(scene);
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;

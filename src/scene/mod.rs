@@ -440,7 +440,8 @@ pub struct Scene {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Integrator {
-    /// Light tracing: every photon vertex splatted to the camera (the particle tracer's own film).
+    /// Light tracing: every visible photon vertex splatted to the camera (the particle tracer's
+    /// own film), lamps in view imaged from the camera.
     #[default]
     Light,
     /// Path tracing from the camera with next-event estimation and MIS.
