@@ -825,7 +825,10 @@ mod tests {
     #[test]
     fn listed_camera_parts_image_their_pixels_and_round_trip() {
         let mut film = Film::new(8, 4).with_listed_camera_pixels(vec![3, 9, 30]);
-        let mut b = FilmBatch { view: vec![(0, [1.0, 2.0, 3.0, 4.0], 2), (2, [0.5, 0.5, 0.5, 0.25], 1)], ..FilmBatch::default() };
+        let mut b = FilmBatch {
+            view: vec![(0, [1.0, 2.0, 3.0, 4.0], 2), (2, [0.5, 0.5, 0.5, 0.25], 1)],
+            ..FilmBatch::default()
+        };
         film.merge(&mut b, 10);
         let img = film.flushed().image(1.0);
         assert_eq!((img.xyz[[3, 1]], img.xyz[[30, 1]], img.xyz[[9, 1]]), (1.0, 0.5, 0.0));

@@ -121,8 +121,8 @@ impl EmitterView {
     }
 
     /// The samples of transport batch `batch` of `count` photons, summed per pixel into
-    /// `film.view` (by the pixel's place in `pixels`); their rays are added to `counters`. Ends early, to be discarded, once
-    /// `cancel` is set.
+    /// `film.view` (by the pixel's place in `pixels`); their rays are added to `counters`. Ends
+    /// early, to be discarded, once `cancel` is set.
     #[allow(clippy::too_many_arguments)]
     pub fn trace_batch(
         &self,
