@@ -402,13 +402,13 @@ impl CameraPart {
         (0..self.count.len()).map(|k| (self.listed.as_ref().map_or(k, |l| l[k] as usize), k))
     }
 
-    /// (mean XYZ, variance of the mean Y) of entry `p`; no samples give zeros, one sample no variance.
-    fn pixel(&self, p: usize) -> ([f64; 3], f64) {
-        let n = self.count[p] as f64;
+    /// (mean XYZ, variance of the mean Y) of entry `k`; no samples give zeros, one sample no variance.
+    fn entry(&self, k: usize) -> ([f64; 3], f64) {
+        let n = self.count[k] as f64;
         if n == 0.0 {
             return ([0.0; 3], 0.0);
         }
-        let [x, y, z, y_sq] = self.sums[p].values();
+        let [x, y, z, y_sq] = self.sums[k].values();
         let mean_y = y / n;
         // Samples are f32: a spread below f32's resolution of the mean is their rounding of one
         // radiance (every sample seeing the same emitter), and the rest the sums' rounding.
@@ -689,7 +689,7 @@ impl Film {
         if let Some(cam) = &self.camera {
             // Mean of independent pixel means: variance Σ var_p / P².
             for (_, k) in cam.entries() {
-                let (m, v) = cam.pixel(k);
+                let (m, v) = cam.entry(k);
                 mean += m[1] / pixels;
                 var += v / (pixels * pixels);
             }
@@ -714,7 +714,7 @@ impl Film {
             let mut var = self.variance_of_mean(y, y_sq_over_n) * emitted_w * emitted_w;
             if let Some((cam, entries)) = camera.as_mut() {
                 if let Some((_, k)) = entries.next_if(|&(q, _)| q == p) {
-                    let (m, v) = cam.pixel(k);
+                    let (m, v) = cam.entry(k);
                     sum = [sum[0] + m[0], sum[1] + m[1], sum[2] + m[2]];
                     var += v;
                 }

@@ -44,13 +44,10 @@ use crate::scene::{LightShape, Scene};
 /// hit per photon, ~3 % of a Cornell-box image run's time.
 pub const VIEW_EVERY: u64 = 4;
 
-/// The scrambling seed of a pixel's sequence: the run's seed and the pixel, mixed (SplitMix64's
-/// finaliser).
+/// The scrambling seed of a pixel's sequence: distinct for the pixels of one run, and changed
+/// by every bit of the run's seed (`owen_sobol_2d` hashes it before use).
 fn pixel_seed(run_seed: u64, pixel: u32) -> u32 {
-    let mut z = run_seed ^ (pixel as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    (z ^ (z >> 31)) as u32
+    (run_seed ^ (run_seed >> 32)) as u32 ^ pixel.wrapping_mul(0x9E37_79B9)
 }
 
 pub struct EmitterView {
@@ -76,12 +73,8 @@ impl EmitterView {
                     && matches!(scene.lights[l].shape, LightShape::Area { .. })
             })
             .collect();
-        let mut surface_light = vec![None; scene.surfaces.len()];
-        for (l, light) in scene.lights.iter().enumerate() {
-            if let (true, LightShape::Area { surface }) = (from_camera[l], &light.shape) {
-                surface_light[*surface] = Some(l);
-            }
-        }
+        let surface_light: Vec<Option<usize>> =
+            scene.surfaces.iter().map(|s| s.light.filter(|&l| from_camera[l])).collect();
         let geo = &scene.geometry;
         let mut marked = vec![false; camera.pixels()];
         let whole = ([0, camera.width - 1], [0, camera.height - 1]);

@@ -794,14 +794,13 @@ pub fn estimates<'a>(scene: &'a Scene, r: &RunResult) -> Result<RunEstimates<'a>
                 "fewer than 2 film batches (<= 1024 photons): Y_var cannot be estimated and is written as 0".into(),
             );
         }
-        // The light tracer's camera part covers only the pixels its lamps project into.
-        let light = r.integrator == crate::integrators::camera::Integrator::Light;
         if let Some(spp) = film.min_samples_per_pixel().filter(|&n| n < 2) {
-            warnings.push(if light {
-                format!("some pixels of the lamps in view have {spp} camera sample(s): their Y_var is written as 0")
-            } else {
-                format!("some pixels have {spp} camera sample(s) (photons < 2 × pixels): their Y_var is written as 0")
-            });
+            // The light tracer's camera part covers only the pixels its lamps project into.
+            let which = match r.integrator {
+                crate::integrators::camera::Integrator::Light => "pixels of the lamps in view",
+                _ => "pixels (photons < 2 × pixels)",
+            };
+            warnings.push(format!("some {which} have {spp} camera sample(s): their Y_var is written as 0"));
         }
     }
     for m in &maps {
