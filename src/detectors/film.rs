@@ -19,6 +19,9 @@
 //! photon, or its light's mean (x̄, ȳ, z̄)/∫ȳ under the light's spectrum in grey transport; so a
 //! flat spectral radiance c reads Y = c.
 
+use std::cell::RefCell;
+use std::sync::Mutex;
+
 use glam::Vec3A;
 use ndarray::{Array2, Array3};
 
@@ -263,6 +266,16 @@ struct Digest {
 }
 
 impl FilmBatch {
+    /// A batch for `photons` photons, its splat list one this thread has used before (`spare_list`),
+    /// with room for a typical photon's splats: grown by pushes from empty, the list was copied
+    /// at each doubling into fresh pages. Reserved pages that are never written cost nothing.
+    pub fn for_photons(photons: u64) -> Self {
+        const SPLATS_PER_PHOTON: u64 = 6;
+        let mut splats = spare_list();
+        splats.reserve((photons * SPLATS_PER_PHOTON).min(1 << 24) as usize);
+        FilmBatch { splats, ..Default::default() }
+    }
+
     #[inline]
     pub fn add(&mut self, pixel: usize, xyz: Vec3A) {
         self.splats.push(Splat { photon: self.photon, pixel: pixel as u32, xyz: [xyz.x, xyz.y, xyz.z] });
@@ -287,7 +300,10 @@ impl FilmBatch {
             image_y_sq_over_n += y * y / n(k);
         }
         sort_by_pixel(&mut self.splats);
-        let mut pixels = Vec::new();
+        // Sized first: grown by pushes, the list was copied at each doubling into fresh pages.
+        let touched = self.splats.chunk_by(|a, b| a.pixel == b.pixel).count();
+        let mut pixels = spare_pixel_list();
+        pixels.reserve(touched);
         for run in self.splats.chunk_by(|a, b| a.pixel == b.pixel) {
             let mut v = [0.0; 4];
             for group in run.chunk_by(|a, b| a.photon as u64 / sub == b.photon as u64 / sub) {
@@ -303,7 +319,57 @@ impl FilmBatch {
             pixels.push((run[0].pixel, v));
         }
         self.digest = Some(Digest { pixels, image_y_sq_over_n, film_batches });
+        // The digest is all that is merged: the list goes back for this thread's next batch.
+        keep_list(std::mem::take(&mut self.splats));
     }
+}
+
+thread_local! {
+    /// This thread's splat lists between batches (a digested batch's list, the radix sort's
+    /// second list). A worker that made them afresh each batch wrote every splat into new pages,
+    /// and the kernel's page faults took 4 % of an image run's CPU time.
+    static SPARE_LISTS: RefCell<Vec<Vec<Splat>>> = const { RefCell::new(Vec::new()) };
+}
+
+/// Digest lists that a film has added (`Film::flush`), for the workers' next digests. The merge
+/// adds them on another thread than the one that made them, so they come back through a lock
+/// (once a batch, never a photon).
+static SPARE_PIXEL_LISTS: Mutex<Vec<Vec<(u32, [f64; 4])>>> = Mutex::new(Vec::new());
+/// The most lists kept: enough for every worker to find one while a merge group is held.
+const SPARE_PIXEL_LISTS_KEPT: usize = 2 * MERGE_GROUP;
+
+fn spare_pixel_list() -> Vec<(u32, [f64; 4])> {
+    SPARE_PIXEL_LISTS.lock().ok().and_then(|mut lists| lists.pop()).unwrap_or_default()
+}
+
+/// Empties `lists` into the spare lists, keeping their allocations up to the most kept.
+fn keep_pixel_lists(lists: &mut Vec<Vec<(u32, [f64; 4])>>) {
+    let Ok(mut spare) = SPARE_PIXEL_LISTS.lock() else {
+        lists.clear();
+        return;
+    };
+    for mut list in lists.drain(..) {
+        if spare.len() < SPARE_PIXEL_LISTS_KEPT {
+            list.clear();
+            spare.push(list);
+        }
+    }
+}
+
+/// An empty splat list, with the capacity of one this thread used before where it has one.
+fn spare_list() -> Vec<Splat> {
+    SPARE_LISTS.with_borrow_mut(|lists| lists.pop()).unwrap_or_default()
+}
+
+/// Keeps `list`'s allocation for this thread's next `spare_list` (two at most: a batch's and
+/// the sort's).
+fn keep_list(mut list: Vec<Splat>) {
+    list.clear();
+    SPARE_LISTS.with_borrow_mut(|lists| {
+        if lists.len() < 2 {
+            lists.push(list);
+        }
+    });
 }
 
 /// Sorts splats by pixel, stably (each pixel's splats stay in photon order): an LSD radix sort,
@@ -311,7 +377,7 @@ impl FilmBatch {
 fn sort_by_pixel(splats: &mut Vec<Splat>) {
     const BITS: u32 = 11;
     let max = splats.iter().map(|s| s.pixel).max().unwrap_or(0);
-    let mut other = Vec::with_capacity(splats.len());
+    let mut other = spare_list();
     let mut shift = 0;
     while shift < 32 && (max >> shift) != 0 {
         let mut start = [0usize; 1 << BITS];
@@ -332,6 +398,7 @@ fn sort_by_pixel(splats: &mut Vec<Splat>) {
         std::mem::swap(splats, &mut other);
         shift += BITS;
     }
+    keep_list(other);
 }
 
 /// The run's film: per pixel the exact sums (`exact`) of each transport batch's XYZ, and, per
@@ -574,7 +641,7 @@ impl Film {
                 }
             }
         }
-        self.pending.clear();
+        keep_pixel_lists(&mut self.pending);
     }
 
     /// The film with every merged batch added (`flush`), for reading.

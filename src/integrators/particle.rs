@@ -119,7 +119,7 @@ impl Kernel<'_> {
             panic!("a test's deliberate panic");
         }
         let start = std::time::Instant::now();
-        let mut film = self.camera.map(|_| FilmBatch::default());
+        let mut film = self.camera.map(|_| FilmBatch::for_photons(count));
         let fx = &self.scene.effects;
         let flags = Flags {
             spectral: fx.spectral,
