@@ -33,7 +33,7 @@ use glam::Vec3A;
 
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
-use crate::geometry::NO_PRIM;
+use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::batch::{cancelled, BATCH_PHOTONS};
 use crate::integrators::particle::is_passable;
 use crate::lights::Emitter;
@@ -43,6 +43,12 @@ use crate::scene::{LightShape, Scene};
 /// Photons per camera sample of the emitters (after batch 0's first pass): at 1/4 of a closest
 /// hit per photon, ~3 % of a Cornell-box image run's time.
 pub const VIEW_EVERY: u64 = 4;
+
+/// How far on either side of a camera ray's nearest hit, relative to its distance, a light is
+/// looked for (`emission_seen`): coplanar hits differ by the rounding of t (~1e-6 of it); whether
+/// such a light is seen is then decided by a visibility test, so a wider reach costs rays, not
+/// accuracy.
+const COPLANAR_REACH: f32 = 1.0 / 16384.0;
 
 /// The scrambling seed of a pixel's sequence: distinct for the pixels of one run, and changed
 /// by every bit of the run's seed (`owen_sobol_2d` hashes it before use).
@@ -57,6 +63,8 @@ pub struct EmitterView {
     surface_light: Vec<Option<usize>>,
     /// The pixels an eligible light may project into, ascending.
     pixels: Vec<u32>,
+    /// The eligible lights' bounding box (lowest, highest corner).
+    light_box: (Vec3A, Vec3A),
 }
 
 impl EmitterView {
@@ -98,7 +106,11 @@ impl EmitterView {
             }
         }
         let pixels: Vec<u32> = (0..marked.len() as u32).filter(|&p| marked[p as usize]).collect();
-        (!pixels.is_empty()).then_some(EmitterView { from_camera, surface_light, pixels })
+        let light_box = (0..geo.len())
+            .filter(|&prim| surface_light[geo.surface_of(prim) as usize].is_some())
+            .flat_map(|prim| geo.verts(prim))
+            .fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        (!pixels.is_empty()).then_some(EmitterView { from_camera, surface_light, pixels, light_box })
     }
 
     /// Whether light `light`'s emission splats are replaced by this view.
@@ -156,8 +168,7 @@ impl EmitterView {
                 (listed, point) = (0, point.wrapping_add(1));
             }
             let dir = camera.ray_direction(pixel as usize, u, v);
-            counters.rays += 1;
-            let xyz = self.emission_seen(geo, emitter, camera.position, dir);
+            let xyz = self.emission_seen(geo, emitter, camera.position, dir, counters);
             let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
             let (x, y, z) = (xyz.x as f64, xyz.y as f64, xyz.z as f64);
             let (_, acc, n) = &mut film.view[slot];
@@ -172,12 +183,53 @@ impl EmitterView {
     /// XYZ radiance reaching the camera along `dir` from an eligible light it hits first (zero
     /// for anything else, which the light tracer's splats image): L_e = Φ p(ω)/(A cosθ) times the
     /// light's mean colour.
+    ///
+    /// A lamp flush with another surface (a quad on the ceiling's plane) is met at the distance
+    /// of that surface, and rounding decides which hit comes out nearer. Such a lamp is seen as
+    /// its emission splats saw it: from its point offset toward the camera, which a coplanar
+    /// surface does not hide (`Geometry::visible`). So where the nearest hit is not a light, a
+    /// light met within `COPLANAR_REACH` of it is tested that way (a short ray across the hit,
+    /// cast only where the hit lies within that reach of the lights' bounding box).
     #[inline]
-    fn emission_seen(&self, geo: &crate::geometry::Geometry, emitter: &Emitter, eye: Vec3A, dir: Vec3A) -> Vec3A {
-        let Some(hit) = geo.intersect(eye, dir, f32::INFINITY, NO_PRIM) else { return Vec3A::ZERO };
-        let prim = hit.prim as usize;
-        let Some(light) = self.surface_light[geo.surface_of(prim) as usize] else { return Vec3A::ZERO };
-        let radiance = emitter.radiance::<false, 1>(light, geo.normal(prim), -dir, &[f64::NAN]).0[0];
+    fn emission_seen(
+        &self,
+        geo: &Geometry,
+        emitter: &Emitter,
+        eye: Vec3A,
+        dir: Vec3A,
+        counters: &mut Counters,
+    ) -> Vec3A {
+        counters.rays += 1;
+        let Some(first) = geo.intersect(eye, dir, f32::INFINITY, NO_PRIM) else { return Vec3A::ZERO };
+        let (hit, light) = match self.light_of(geo, first.prim) {
+            Some(light) => (first, light),
+            None => {
+                let reach = first.t * COPLANAR_REACH;
+                let at = eye + dir * first.t;
+                let (lo, hi) = self.light_box;
+                if (at + reach).cmplt(lo).any() || (at - reach).cmpgt(hi).any() {
+                    return Vec3A::ZERO;
+                }
+                counters.rays += 1;
+                let from = eye + dir * (first.t - reach);
+                let Some(behind) = geo.intersect(from, dir, 2.0 * reach, first.prim) else { return Vec3A::ZERO };
+                let Some(light) = self.light_of(geo, behind.prim) else { return Vec3A::ZERO };
+                let (p, err) = geo.hit_point(&behind);
+                let lamp = RayEnd { p, err, n: geo.normal(behind.prim as usize), prim: behind.prim };
+                counters.shadow_rays += 1;
+                if !geo.visible(lamp, RayEnd::free(eye)) {
+                    return Vec3A::ZERO;
+                }
+                (behind, light)
+            }
+        };
+        let radiance = emitter.radiance::<false, 1>(light, geo.normal(hit.prim as usize), -dir, &[f64::NAN]).0[0];
         emitter.grey_xyz(light) * radiance as f32
+    }
+
+    /// The eligible light whose surface primitive `prim` lies on.
+    #[inline]
+    fn light_of(&self, geo: &Geometry, prim: u32) -> Option<usize> {
+        self.surface_light[geo.surface_of(prim as usize) as usize]
     }
 }
