@@ -22,7 +22,7 @@
 use std::cell::RefCell;
 use std::sync::Mutex;
 
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 use ndarray::{Array2, Array3};
 
 use super::exact::ExactSum;
@@ -116,37 +116,11 @@ impl CameraModel {
     }
 
     /// Columns and rows (inclusive ranges) of a rectangle of pixels that holds the image of the
-    /// convex hull of `points`, with a margin for rounding; None when it misses the
-    /// image or lies wholly behind the camera. A point behind or nearly in the camera's plane
-    /// (within 10⁻⁴ rad of it) while another is in front gives the whole image: the hull may then
-    /// reach any pixel.
-    pub fn pixel_box(&self, points: &[Vec3A]) -> Option<([usize; 2], [usize; 2])> {
+    /// triangle, with a margin for rounding; None when it misses the image or lies wholly
+    /// behind the camera. The triangle is first clipped to the view's pyramid (widened by the
+    /// margin), so a lamp reaching behind the camera lists only the pixels it can be seen in.
+    pub fn pixel_box(&self, triangle: &[Vec3A; 3]) -> Option<([usize; 2], [usize; 2])> {
         let (w, h) = (self.width as f64, self.height as f64);
-        let whole = ([0, self.width - 1], [0, self.height - 1]);
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        let (mut behind, mut grazing) = (0, 0);
-        for &p in points {
-            let v = (p - self.position).as_dvec3();
-            let z = v.dot(self.forward.as_dvec3());
-            if !(z > 0.0) {
-                behind += 1;
-                continue;
-            }
-            if !(z > 1e-4 * v.length()) {
-                grazing += 1;
-                continue;
-            }
-            let col = v.dot(self.column_axis.as_dvec3()) / z + 0.5 * w;
-            let row = 0.5 * h - v.dot(self.row_axis.as_dvec3()) / z;
-            lo = [lo[0].min(col), lo[1].min(row)];
-            hi = [hi[0].max(col), hi[1].max(row)];
-        }
-        if behind == points.len() {
-            return None;
-        }
-        if behind + grazing > 0 {
-            return Some(whole);
-        }
         // A pixel's margin, plus what a ray direction's f32 rounding (< 10⁻⁶ rad, up to
         // (1 + tan²) image-plane units a radian off axis) spans in pixels: with a field of view of
         // hundredths of a degree that is more than a pixel.
@@ -154,12 +128,55 @@ impl CameraModel {
             let half = half as f64;
             1.0 + (1e-6 * (1.0 + 2.0 * half * half) * n / (2.0 * half)).ceil()
         };
+        let (mx, my) = (margin(self.half_w, w), margin(self.half_h, h));
+        // Camera space in pixel units: column x/z + w/2, row h/2 − y/z.
+        let (cx, cy, fz) = (self.column_axis.as_dvec3(), self.row_axis.as_dvec3(), self.forward.as_dvec3());
+        let mut hull: Vec<DVec3> = triangle
+            .iter()
+            .map(|&p| {
+                let v = (p - self.position).as_dvec3();
+                DVec3::new(v.dot(cx), v.dot(cy), v.dot(fz))
+            })
+            .collect();
+        // The pyramid |x| ≤ a·z, |y| ≤ b·z (which holds only at z ≥ 0), one plane at a time
+        // (Sutherland–Hodgman): inside where d(v) = ±v.x − a·v.z (or the same in y) ≤ 0.
+        let (a, b) = (0.5 * w + mx + 1.0, 0.5 * h + my + 1.0);
+        let planes =
+            [DVec3::new(1.0, 0.0, -a), DVec3::new(-1.0, 0.0, -a), DVec3::new(0.0, 1.0, -b), DVec3::new(0.0, -1.0, -b)];
+        for plane in planes {
+            let mut clipped = Vec::with_capacity(hull.len() + 1);
+            for (k, &v) in hull.iter().enumerate() {
+                let u = hull[(k + 1) % hull.len()];
+                let (dv, du) = (plane.dot(v), plane.dot(u));
+                if dv <= 0.0 {
+                    clipped.push(v);
+                }
+                if (dv <= 0.0) != (du <= 0.0) {
+                    clipped.push(v + (u - v) * (dv / (dv - du)));
+                }
+            }
+            hull = clipped;
+            if hull.is_empty() {
+                return None;
+            }
+        }
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for v in &hull {
+            // Inside the pyramid |x| ≤ a·z and |y| ≤ b·z, so x/z and y/z are bounded however
+            // small z is; z is 0 only at the eye itself, a vertex of a triangle through the eye,
+            // which is seen edge-on: its image is that of its other points.
+            if !(v.z > 0.0) {
+                continue;
+            }
+            let (col, row) = (v.x / v.z + 0.5 * w, 0.5 * h - v.y / v.z);
+            lo = [lo[0].min(col), lo[1].min(row)];
+            hi = [hi[0].max(col), hi[1].max(row)];
+        }
         let span = |lo: f64, hi: f64, n: usize, margin: f64| {
             let first = (lo.floor() - margin).max(0.0) as usize;
             let last = ((hi.floor() + margin).max(0.0) as usize).min(n - 1);
             [first.min(n - 1), last]
         };
-        let (mx, my) = (margin(self.half_w, w), margin(self.half_h, h));
         if !(hi[0] >= -mx && lo[0] <= w + mx && hi[1] >= -my && lo[1] <= h + my) {
             return None;
         }
@@ -859,20 +876,20 @@ mod tests {
         });
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
         let mut uniform = || (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
-        let (mut seen, mut whole) = (0, 0);
+        let (mut seen, mut behind_seen, mut behind_bounded) = (0, 0, 0);
         for _ in 0..400 {
             let tri: [Vec3A; 3] = std::array::from_fn(|_| {
                 Vec3A::new(uniform() * 6.0 - 2.0, uniform() * 6.0 - 2.5, uniform() * 8.0 - 2.0)
             });
             let b = cam.pixel_box(&tri);
-            if b == Some(([0, cam.width - 1], [0, cam.height - 1])) {
-                whole += 1;
-            }
+            let behind = tri.iter().any(|&p| (p - cam.position).dot(cam.forward) <= 0.0);
+            let mut met = false;
             for _ in 0..2000 {
                 let pixel = (uniform() * cam.pixels() as f32) as usize % cam.pixels();
                 let dir = cam.ray_direction(pixel, uniform(), uniform());
                 if crate::geometry::intersect_triangle(cam.position, dir, f32::INFINITY, &tri).is_some() {
                     seen += 1;
+                    met = true;
                     let ([c0, c1], [r0, r1]) = b.expect("a triangle a ray meets has a box");
                     let (row, col) = (pixel / cam.width, pixel % cam.width);
                     assert!(
@@ -881,9 +898,41 @@ mod tests {
                     );
                 }
             }
+            if behind && met {
+                behind_seen += 1;
+                behind_bounded += (b != Some(([0, cam.width - 1], [0, cam.height - 1]))) as u32;
+            }
         }
-        // The draw met many triangles, some of them reaching behind the camera.
-        assert!(seen > 10_000 && whole > 10, "{seen} rays met a triangle; {whole} whole-image boxes");
+        // The draw met many triangles, some of them reaching behind the camera, and clipping
+        // bounded most of those to a part of the image.
+        assert!(
+            seen > 10_000 && behind_seen > 10 && 2 * behind_bounded > behind_seen,
+            "{seen} rays met a triangle; {behind_seen} seen reach behind the camera, {behind_bounded} of them bounded"
+        );
+    }
+
+    /// A ceiling panel that reaches over and behind the camera is seen in the image's top rows
+    /// only, and a triangle through the eye, seen edge-on, in the rows about its line.
+    #[test]
+    fn a_lamp_reaching_behind_the_camera_lists_only_the_rows_it_is_seen_in() {
+        let cam = CameraModel::new(&Camera {
+            position: DVec3::new(0.0, 1.5, 0.0),
+            look_at: DVec3::new(0.0, 1.5, 5.0),
+            up: DVec3::Y,
+            fov_deg: 60.0,
+            resolution: [64, 48],
+        });
+        // The ceiling at 2.5 m, 2 m either side, from 3 m behind the camera to 6 m ahead.
+        let panel = [Vec3A::new(-2.0, 2.5, -3.0), Vec3A::new(2.0, 2.5, -3.0), Vec3A::new(0.0, 2.5, 6.0)];
+        let (_, [r0, r1]) = cam.pixel_box(&panel).expect("the panel is in view");
+        // Its lowest point in view is the far tip, 1 m above the eye at 6 m: 1/6 of the image
+        // plane's half height tan 30° · 48/64 above the middle row 24 (rows count down).
+        let tip_row = 24.0 - (1.0 / 6.0) / (30f64.to_radians().tan() * 48.0 / 64.0) * 24.0;
+        assert!(r0 == 0 && (r1 as f64) <= tip_row + 2.0, "rows {r0}..={r1}, tip at row {tip_row}");
+        // A horizontal triangle through the eye: the middle rows (24 ± the margin), every column.
+        let through = [Vec3A::new(-1.0, 1.5, -1.0), Vec3A::new(1.0, 1.5, -1.0), Vec3A::new(0.0, 1.5, 3.0)];
+        let ([c0, c1], [r0, r1]) = cam.pixel_box(&through).expect("seen edge-on");
+        assert!(c0 == 0 && c1 == 63 && r0 >= 21 && r1 <= 27 && r0 <= 23 && r1 >= 24, "{c0}..={c1}, {r0}..={r1}");
     }
 
     /// A camera part listing some pixels (the light tracer's lamps in view) takes samples by
