@@ -921,6 +921,9 @@ fn a_lamp_in_view_reads_its_exact_radiance_in_the_light_traced_image() {
 fn a_lamp_flush_with_the_ceiling_reads_its_radiance_in_the_light_traced_image() {
     let toml = cornell(64).replace("548.7", "548.8");
     assert!(toml.contains("[[343, 548.8, 227]"), "the lamp moved onto the ceiling");
+    // The loader warns of it, and not of the bundled lamp 0.1 mm below.
+    let flush = |w: &String| w.contains("light \"light\" lies in the plane of surface \"ceiling\"");
+    assert!(scene(&toml).warnings.iter().any(flush) && !scene(&cornell(64)).warnings.iter().any(flush));
     assert_lamp_pixels_read(&toml, 0.01);
 }
 

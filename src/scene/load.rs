@@ -378,6 +378,7 @@ impl<'s> Loader<'s> {
         }
 
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
+        self.warn_of_lights_flush_with_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces, &mut warnings);
         self.check_ies_c0_planes(&lights, &tris, &tri_surface)?;
         let reference = self.reference(root, &surfaces)?;
         let smooth = tri_shading.iter().any(|n| n[0] != Vec3A::ZERO);
@@ -1347,6 +1348,53 @@ impl<'s> Loader<'s> {
             }
         }
         Ok(())
+    }
+
+    /// An area light lying in another surface's plane and overlapping it (a lamp quad on the
+    /// ceiling, as the Cornell box's is published): rays meet both at the same distance and
+    /// rounding picks either, so every integrator sees part of the lamp as the other surface.
+    /// Warned once for each such pair; skipped when the light's triangles times the scene's would
+    /// exceed `FLUSH_CHECK_PAIRS` tests.
+    fn warn_of_lights_flush_with_surfaces(
+        &self,
+        lights: &[Light],
+        light_lines: &[usize],
+        tris: &[[Vec3A; 3]],
+        tri_surface: &[u32],
+        surfaces: &[Surface],
+        warnings: &mut Vec<String>,
+    ) {
+        for (l, line) in lights.iter().zip(light_lines) {
+            let LightShape::Area { surface } = l.shape else { continue };
+            let own: Vec<[DVec3; 3]> = tris
+                .iter()
+                .zip(tri_surface)
+                .filter(|(_, &s)| s as usize == surface)
+                .map(|(t, _)| t.map(|v| v.as_dvec3()))
+                .collect();
+            if own.len().saturating_mul(tris.len()) > FLUSH_CHECK_PAIRS {
+                continue;
+            }
+            let mut flush_with = vec![false; surfaces.len()];
+            for (t, &s) in tris.iter().zip(tri_surface) {
+                if s as usize == surface || flush_with[s as usize] {
+                    continue;
+                }
+                let other = t.map(|v| v.as_dvec3());
+                flush_with[s as usize] = own.iter().any(|lamp| coplanar_overlap(lamp, &other));
+            }
+            for (s, _) in flush_with.iter().enumerate().filter(|(_, &f)| f) {
+                warnings.push(format!(
+                    "{}:{line}: light \"{}\" lies in the plane of surface \"{}\" and overlaps it: rays meet both at \
+                     the same distance and either may be hit, so images show part of the lamp as that surface and \
+                     photons arriving there may reflect off it; move the light off the surface by a small gap (the \
+                     Cornell box lowers its lamp 0.1 mm)",
+                    self.src.file.display(),
+                    l.name,
+                    surfaces[s].name
+                ));
+            }
+        }
     }
 
     /// An IES table's C = 0 plane is c0 projected off the light's axis: parallel, it has no
@@ -2611,6 +2659,43 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
 
 /// Distance from `p` to the closest point of triangle `t` (Ericson, Real-Time Collision
 /// Detection, §5.1.5: classify p against the triangle's Voronoi regions).
+/// Light triangles × scene triangles above which the check for lights flush with surfaces is
+/// skipped (about a second's work).
+const FLUSH_CHECK_PAIRS: usize = 100_000_000;
+
+/// Whether triangle `b` lies in `a`'s plane, to single precision (its vertices within a few f32
+/// roundings of the coordinates), and the two overlap with some area: touching along an edge (a
+/// lamp set into a hole of the ceiling) is no overlap. Separating-axis test in `a`'s plane.
+fn coplanar_overlap(a: &[DVec3; 3], b: &[DVec3; 3]) -> bool {
+    let scale = a.iter().chain(b).map(|v| v.abs().max_element()).fold(0.0, f64::max);
+    let tol = 4.0 * f32::EPSILON as f64 * scale;
+    let (lo, hi) = (a[0].min(a[1]).min(a[2]), a[0].max(a[1]).max(a[2]));
+    let (blo, bhi) = (b[0].min(b[1]).min(b[2]), b[0].max(b[1]).max(b[2]));
+    if (blo - hi).max_element() > tol || (lo - bhi).max_element() > tol {
+        return false;
+    }
+    let normal = (a[1] - a[0]).cross(a[2] - a[0]);
+    let Some(n) = normal.try_normalize() else { return false };
+    if b.iter().any(|v| n.dot(*v - a[0]).abs() > tol) {
+        return false;
+    }
+    // In-plane coordinates, then each edge's outward normal as a candidate separating axis.
+    let u = (a[1] - a[0]).normalize();
+    let w = n.cross(u);
+    let flat = |t: &[DVec3; 3]| t.map(|v| glam::DVec2::new(u.dot(v - a[0]), w.dot(v - a[0])));
+    let (fa, fb) = (flat(a), flat(b));
+    let separated_along = |axis: glam::DVec2| {
+        let span = |t: &[glam::DVec2; 3]| {
+            t.iter().map(|p| axis.dot(*p)).fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), x| (l.min(x), h.max(x)))
+        };
+        let ((la, ha), (lb, hb)) = (span(&fa), span(&fb));
+        // Overlapping by no more than the tolerance: touching, not overlapping.
+        ha.min(hb) - la.max(lb) <= tol * axis.length()
+    };
+    let edges = |t: [glam::DVec2; 3]| (0..3).map(move |k| (t[(k + 1) % 3] - t[k]).perp());
+    !edges(fa).chain(edges(fb)).any(separated_along)
+}
+
 fn point_triangle_distance(p: DVec3, t: &[DVec3; 3]) -> f64 {
     let [a, b, c] = *t;
     let (ab, ac, ap) = (b - a, c - a, p - a);
@@ -2647,6 +2732,27 @@ fn point_triangle_distance(p: DVec3, t: &[DVec3; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A lamp triangle on a 550 mm ceiling: overlapping it in its plane, 0.1 mm below it, beside
+    /// it sharing an edge, apart in the plane, across it, and overlapping by a sliver.
+    #[test]
+    fn coplanar_overlap_needs_one_plane_and_some_area() {
+        let v = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+        let ceiling = [v(0.0, 548.8, 0.0), v(556.0, 548.8, 0.0), v(0.0, 548.8, 559.2)];
+        let lamp = |y: f64| [v(213.0, y, 227.0), v(343.0, y, 227.0), v(213.0, y, 332.0)];
+        assert!(coplanar_overlap(&lamp(548.8), &ceiling) && coplanar_overlap(&ceiling, &lamp(548.8)));
+        assert!(!coplanar_overlap(&lamp(548.7), &ceiling), "0.1 mm apart");
+        // The ceiling's other half shares the diagonal with it: touching, not overlapping.
+        let other_half = [v(556.0, 548.8, 0.0), v(556.0, 548.8, 559.2), v(0.0, 548.8, 559.2)];
+        assert!(!coplanar_overlap(&other_half, &ceiling));
+        let apart = [v(600.0, 548.8, 0.0), v(700.0, 548.8, 0.0), v(600.0, 548.8, 100.0)];
+        assert!(!coplanar_overlap(&apart, &ceiling));
+        let across = [v(100.0, 500.0, 100.0), v(100.0, 600.0, 100.0), v(200.0, 500.0, 100.0)];
+        assert!(!coplanar_overlap(&across, &ceiling));
+        // A triangle beyond the diagonal with one corner 2 mm across it.
+        let sliver = [v(277.0, 548.8, 278.0), v(556.0, 548.8, 559.2), v(556.0, 548.8, 300.0)];
+        assert!(coplanar_overlap(&sliver, &ceiling));
+    }
 
     #[test]
     fn point_triangle_distance_in_each_region() {
