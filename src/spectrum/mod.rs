@@ -345,6 +345,8 @@ pub struct SpectralSampler {
     /// guide[j]: the last segment whose cdf starts at or below j/G of the total, where the search
     /// for a u in [j/G, (j+1)/G) begins (a guide table: O(1) expected instead of a binary search).
     guide: Vec<u32>,
+    /// 2(f1 − f0)/w per segment: the quadratic's coefficient, kept so a sample divides once.
+    twice_slope: Vec<f64>,
 }
 
 impl SpectralSampler {
@@ -368,7 +370,8 @@ impl SpectralSampler {
                 (cdf.partition_point(|&c| c <= start).max(1) - 1).min(xs.len() - 2) as u32
             })
             .collect();
-        Some(SpectralSampler { xs, ys, cdf, guide })
+        let twice_slope = xs.windows(2).zip(ys.windows(2)).map(|(x, y)| 2.0 * (y[1] - y[0]) / (x[1] - x[0])).collect();
+        Some(SpectralSampler { xs, ys, cdf, guide, twice_slope })
     }
 
     pub fn total(&self) -> f64 {
@@ -426,12 +429,12 @@ impl SpectralSampler {
         let target = u * self.total();
         let i = self.segment(u, target);
         let (x0, x1) = (self.xs[i], self.xs[i + 1]);
-        let (f0, f1) = (self.ys[i], self.ys[i + 1]);
+        let f0 = self.ys[i];
         let w = x1 - x0;
         let r = (target - self.cdf[i]).max(0.0);
         // Solve f0·x + (f1−f0)·x²/(2w) = r for x in [0, w], in the cancellation-free form
         // x = 2r / (f0 + sqrt(f0² + 2(f1−f0)r/w)).
-        let disc = (f0 * f0 + 2.0 * (f1 - f0) * r / w).max(0.0);
+        let disc = (f0 * f0 + self.twice_slope[i] * r).max(0.0);
         let denom = f0 + disc.sqrt();
         let x = if denom > 0.0 { 2.0 * r / denom } else { 0.0 };
         (x0 + x.clamp(0.0, w)).min(x1)
