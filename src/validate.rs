@@ -662,10 +662,6 @@ fn dispersion(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error> {
 
 // ── 9. The lecture's integral ──────────────────────────────────────────────────────────────
 
-/// ∫₋₁¹ (x² − x³) dx = 2/3 by four estimators of (1/N)Σ f(Xᵢ)/p(Xᵢ); returns (estimate, stderr,
-/// variance per sample) each. Stratified variants use N strata of u, one sample each; their
-/// variance is estimated from pairs of neighbouring strata (each pair's difference of f/p
-/// values estimates the within-stratum variance, slightly conservatively).
 // ── 9. Scattering media ────────────────────────────────────────────────────────────────────
 
 /// (absorbed, stderr) of the named surfaces together (independent rows of one run: the
@@ -823,6 +819,10 @@ fn luminescent_concentrator(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), 
     Ok(())
 }
 
+/// ∫₋₁¹ (x² − x³) dx = 2/3 by four estimators of (1/N)Σ f(Xᵢ)/p(Xᵢ); returns (estimate, stderr,
+/// variance per sample) each. Stratified variants use N strata of u, one sample each; their
+/// variance is estimated from pairs of neighbouring strata (each pair's difference of f/p
+/// values estimates the within-stratum variance, slightly conservatively).
 pub fn lecture_estimators(n: usize, seed: u64) -> [(f64, f64, f64); 4] {
     let mut s = crate::sampling::Sampler::for_batch(seed, 0);
     let f = |x: f64| x * x - x * x * x;

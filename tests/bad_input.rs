@@ -1086,7 +1086,7 @@ fn too_many_triangles_are_refused_before_they_are_made() {
     let err = String::from_utf8_lossy(&out.stderr);
     let total: u64 = err.split("make ").nth(1).and_then(|r| r.split(' ').next()).and_then(|n| n.parse().ok()).unwrap();
     let spheres = (total - 2) / 5_242_880;
-    assert!((total - 2) % 5_242_880 == 0 && (1..=103).contains(&spheres), "{err}");
+    assert!((total - 2).is_multiple_of(5_242_880) && (1..=103).contains(&spheres), "{err}");
 }
 
 #[test]

@@ -169,10 +169,10 @@ power_w = 1
     assert!(f.ledger.relative_residual() < 1e-12, "{:?}", f.ledger);
     let t = &r.tallies;
     let bin = |k: usize| t.estimate(&t.spectra, k, r.emitted_w, r.transport.error_model());
-    let tau = 5.0 * 0.01;
-    let absorbed = 1.0 - (-tau as f64).exp();
+    let tau: f64 = 5.0 * 0.01;
+    let absorbed = 1.0 - (-tau).exp();
     let (through, through_se) = bin(4);
-    assert_z("the beam's bin", through, (-tau as f64).exp(), through_se, 4.0);
+    assert_z("the beam's bin", through, (-tau).exp(), through_se, 4.0);
     let mut chi2 = 0.0;
     for k in 15..25 {
         let (lo, hi) = (400.0 + 10.0 * k as f64, 410.0 + 10.0 * k as f64);

@@ -236,7 +236,7 @@ fn absorbing_medium_attenuates_the_path_to_an_immersed_object() {
         100_000,
         4,
     );
-    let r: f64 = ((1.33 - 1.0) / (1.33 + 1.0) as f64).powi(2);
+    let r: f64 = ((1.33f64 - 1.0) / (1.33 + 1.0)).powi(2);
     let p = surface(&f, "plate");
     assert_z("immersed plate", p.incident_w, (1.0 - r) * (-1.0f64).exp(), p.incident_w_stderr, 4.0);
 }

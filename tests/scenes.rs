@@ -138,7 +138,7 @@ fn rel_error_stop_is_reproducible_from_the_recorded_photon_count() {
     let (w, se) = (receiver["incident_w"].as_f64().unwrap(), receiver["incident_w_stderr"].as_f64().unwrap());
     assert!(((w - 1.99825) / se).abs() < 4.0, "{w} ± {se}");
     let photons = run["photons"].as_u64().unwrap();
-    assert!(photons < 1_000_000 && photons % 16_384 == 0, "{photons}");
+    assert!(photons < 1_000_000 && photons.is_multiple_of(16_384), "{photons}");
     let again = temp_dir("relerr-again");
     let o = photon()
         .arg("run")
@@ -175,7 +175,7 @@ fn ctrl_c_writes_the_finished_batches_with_stop_reason_interrupted() {
     let run: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
     assert_eq!(run["stop_reason"], "interrupted");
     let photons = run["photons"].as_u64().unwrap();
-    assert!(photons > 0 && photons < 1_000_000_000 && photons % 16_384 == 0, "{photons}");
+    assert!(photons > 0 && photons < 1_000_000_000 && photons.is_multiple_of(16_384), "{photons}");
     let flux: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("flux.json")).unwrap()).unwrap();
     assert_eq!(flux["photons"].as_u64().unwrap(), photons);

@@ -275,9 +275,12 @@ pub struct FilmBatch {
     digest: Option<Digest>,
 }
 
+/// Touched pixels in increasing order, each with its sums (X, Y, Z, Σ_b S_b²/n_b of Y).
+type PixelList = Vec<(u32, [f64; 4])>;
+
 struct Digest {
     /// Touched pixels in increasing order, each with its sums.
-    pixels: Vec<(u32, [f64; 4])>,
+    pixels: PixelList,
     image_y_sq_over_n: f64,
     film_batches: u64,
 }
@@ -351,16 +354,16 @@ thread_local! {
 /// Digest lists that a film has added (`Film::flush`), for the workers' next digests. The merge
 /// adds them on another thread than the one that made them, so they come back through a lock
 /// (once a batch, never a photon).
-static SPARE_PIXEL_LISTS: Mutex<Vec<Vec<(u32, [f64; 4])>>> = Mutex::new(Vec::new());
+static SPARE_PIXEL_LISTS: Mutex<Vec<PixelList>> = Mutex::new(Vec::new());
 /// The most lists kept: enough for every worker to find one while a merge group is held.
 const SPARE_PIXEL_LISTS_KEPT: usize = 2 * MERGE_GROUP;
 
-fn spare_pixel_list() -> Vec<(u32, [f64; 4])> {
+fn spare_pixel_list() -> PixelList {
     SPARE_PIXEL_LISTS.lock().ok().and_then(|mut lists| lists.pop()).unwrap_or_default()
 }
 
 /// Empties `lists` into the spare lists, keeping their allocations up to the most kept.
-fn keep_pixel_lists(lists: &mut Vec<Vec<(u32, [f64; 4])>>) {
+fn keep_pixel_lists(lists: &mut Vec<PixelList>) {
     let Ok(mut spare) = SPARE_PIXEL_LISTS.lock() else {
         lists.clear();
         return;
@@ -435,7 +438,7 @@ pub struct Film {
     camera: Option<CameraPart>,
     /// Batches' per-pixel sums merged but not yet added to `pixels` (`merge`, `flush`); every
     /// read of `pixels` requires it empty.
-    pending: Vec<Vec<(u32, [f64; 4])>>,
+    pending: Vec<PixelList>,
 }
 
 /// One pixel's exact sums: X, Y, Z, and Y's square term.

@@ -12,5 +12,5 @@ pub const CANCEL_CHECK_PHOTONS: u64 = 256;
 /// Whether `cancel` is set; checked every `CANCEL_CHECK_PHOTONS` photons of a batch.
 #[inline]
 pub fn cancelled(cancel: Option<&AtomicBool>, photon: u64) -> bool {
-    photon % CANCEL_CHECK_PHOTONS == 0 && cancel.is_some_and(|c| c.load(Ordering::Relaxed))
+    photon.is_multiple_of(CANCEL_CHECK_PHOTONS) && cancel.is_some_and(|c| c.load(Ordering::Relaxed))
 }

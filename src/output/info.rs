@@ -34,10 +34,12 @@ pub fn describe(scene: &Scene) -> String {
             LightShape::Rays { set } => format!("ray set, {} rays", set.rays.len()),
             LightShape::Point { position, .. } => {
                 let p = scene.file_coordinates(*position);
-                let unit = match scene.unit_m {
-                    u if u == 0.01 => "cm",
-                    u if u == 0.001 => "mm",
-                    _ => "m",
+                let unit = if scene.unit_m == 0.01 {
+                    "cm"
+                } else if scene.unit_m == 0.001 {
+                    "mm"
+                } else {
+                    "m"
                 };
                 format!("point at [{}, {}, {}] {unit}", round_shown(p.x), round_shown(p.y), round_shown(p.z))
             }

@@ -214,8 +214,10 @@ pub(crate) fn false_colour(t: f64) -> plotters::style::RGBColor {
 
 /// A scale-bar value: whole lux from 100 lx up, one decimal from 1 lx, else three.
 fn lux_label(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
     match v {
-        v if v == 0.0 => "0".into(),
         v if v >= 100.0 => format!("{v:.0}"),
         v if v >= 1.0 => format!("{v:.1}"),
         v => format!("{v:.3}"),

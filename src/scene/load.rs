@@ -893,7 +893,7 @@ impl<'s> Loader<'s> {
             if total > cap {
                 return Err(InputError::new(
                     self.src.file,
-                    &child_path(&entry, "shape"),
+                    child_path(&entry, "shape"),
                     Some(line),
                     format!("the scene's shapes make {total} triangles up to this one, more than {cap}: {why}"),
                 ));
@@ -914,7 +914,7 @@ impl<'s> Loader<'s> {
             if let (Some((_, None)), None) = (&e.map, &uvs) {
                 return Err(InputError::new(
                     self.src.file,
-                    &child_path(&index_path("surfaces", i), "map"),
+                    child_path(&index_path("surfaces", i), "map"),
                     Some(e.map_line),
                     "an irradiance map over a mesh needs texture coordinates (`vt`, and `f v/vt`) on every face",
                 ));
@@ -930,7 +930,7 @@ impl<'s> Loader<'s> {
                 if let Some(k) = flat {
                     return Err(InputError::new(
                         self.src.file,
-                        &child_path(&index_path("surfaces", i), "map"),
+                        child_path(&index_path("surfaces", i), "map"),
                         Some(e.map_line),
                         format!(
                             "triangle {k} (0-based, after splitting faces) of the mesh has texture coordinates that \
@@ -1295,7 +1295,7 @@ impl<'s> Loader<'s> {
                 let (key, line) = spec.power_key;
                 return Err(InputError::new(
                     self.src.file,
-                    &child_path(&spec.path, key),
+                    child_path(&spec.path, key),
                     Some(line),
                     format!(
                         "{what}; photon accepts up to {MAX_POWER_W:e} W in all (the Sun emits 3.8e26 W), \
@@ -1336,7 +1336,7 @@ impl<'s> Loader<'s> {
                     if d <= 1e-6 * scale {
                         return Err(InputError::new(
                             self.src.file,
-                            &child_path(&index_path("lights", i), "shape"),
+                            child_path(&index_path("lights", i), "shape"),
                             Some(*spec_line),
                             format!(
                                 "point light \"{}\" lies on surface \"{}\" ({d:.1e} m away): move it off the surface",
@@ -1428,7 +1428,7 @@ impl<'s> Loader<'s> {
                 };
                 return Err(InputError::new(
                     self.src.file,
-                    &child_path(&child_path(&index_path("lights", i), "distribution"), "c0"),
+                    child_path(&child_path(&index_path("lights", i), "distribution"), "c0"),
                     Some(c0_line),
                     format!(
                         "c0 of light \"{}\" is parallel to {whose}, so it picks no C = 0 plane: give a \

@@ -148,6 +148,8 @@ impl Abg {
 
     /// An s below which the shape is flat: s^{g/2} ≤ 10⁻⁴·B (the cusp of a small g included),
     /// and at most (10⁻³·knee)² and 10⁻⁸; at least 10⁻³⁰⁰.
+    // min/max rather than clamp: a NaN cusp gives a bound, not a NaN.
+    #[allow(clippy::manual_clamp)]
     pub fn flat_below(&self) -> f64 {
         let cusp = if self.g > 0.0 { (1e-4 * self.b).powf(2.0 / self.g) } else { 1.0 };
         cusp.min((self.knee() * 1e-3).powi(2)).min(1e-8).max(1e-300)

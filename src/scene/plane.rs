@@ -79,7 +79,7 @@ impl WorkPlane {
         }
         let q = o + s * w - self.origin;
         let (u, v) = (q.dot(self.du), q.dot(self.dv));
-        if !(u >= 0.0 && u < 1.0 && v >= 0.0 && v < 1.0) {
+        if !((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v)) {
             return None;
         }
         let [nu, nv] = self.resolution;

@@ -446,6 +446,18 @@ pub fn icosphere(level: u32) -> Vec<[DVec3; 3]> {
     tris
 }
 
+/// A mesh file's triangles, its format chosen by extension: `.stl` (ASCII or binary STL), else
+/// `.ply`, else Wavefront OBJ. glTF is not read yet, and is refused rather than misread as OBJ.
+fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTriangle>, InputError> {
+    let ext = file.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("stl") => super::stl::read_stl(file, warnings),
+        Some("ply") => super::ply::read_ply(file, warnings),
+        Some("gltf" | "glb") => super::gltf::read_gltf(file, warnings),
+        _ => obj::read_obj(file, warnings),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -496,17 +508,5 @@ mod tests {
             let n = (t[1] - t[0]).cross(t[2] - t[0]);
             assert!(n.dot((t[0] + t[1] + t[2]) / 3.0) > 0.0);
         }
-    }
-}
-
-/// A mesh file's triangles, its format chosen by extension: `.stl` (ASCII or binary STL), else
-/// `.ply`, else Wavefront OBJ. glTF is not read yet, and is refused rather than misread as OBJ.
-fn read_mesh(file: &Path, warnings: &mut Vec<String>) -> Result<Vec<obj::ObjTriangle>, InputError> {
-    let ext = file.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("stl") => super::stl::read_stl(file, warnings),
-        Some("ply") => super::ply::read_ply(file, warnings),
-        Some("gltf" | "glb") => super::gltf::read_gltf(file, warnings),
-        _ => obj::read_obj(file, warnings),
     }
 }

@@ -85,7 +85,7 @@ impl Cmf {
 pub fn xyz_to_linear_srgb(xyz: Vec3) -> Vec3 {
     Vec3::new(
         3.240_454_2 * xyz.x - 1.537_138_5 * xyz.y - 0.498_531_4 * xyz.z,
-        -0.969_266_0 * xyz.x + 1.876_010_8 * xyz.y + 0.041_556_0 * xyz.z,
+        -0.969_266 * xyz.x + 1.876_010_8 * xyz.y + 0.041_556_0 * xyz.z,
         0.055_643_4 * xyz.x - 0.204_025_9 * xyz.y + 1.057_225_2 * xyz.z,
     )
 }
