@@ -2657,16 +2657,18 @@ fn simplify_material(m: &mut Material, range: (f64, f64)) {
     }
 }
 
-/// Distance from `p` to the closest point of triangle `t` (Ericson, Real-Time Collision
-/// Detection, §5.1.5: classify p against the triangle's Voronoi regions).
 /// Light triangles × scene triangles above which the check for lights flush with surfaces is
 /// skipped (about a second's work).
 const FLUSH_CHECK_PAIRS: usize = 100_000_000;
 
-/// Whether triangle `b` lies in `a`'s plane, to single precision (its vertices within a few f32
-/// roundings of the coordinates), and the two overlap with some area: touching along an edge (a
-/// lamp set into a hole of the ceiling) is no overlap. Separating-axis test in `a`'s plane.
+/// Whether the triangles lie in one plane, to single precision (the smaller's vertices within a
+/// few f32 roundings of the coordinates of the larger's plane: a small triangle's own normal,
+/// tilted by its rounding, would miss a large one's far vertices), and overlap with some area:
+/// touching along an edge (a lamp set into a hole of the ceiling) is no overlap.
+/// Separating-axis test in the larger's plane.
 fn coplanar_overlap(a: &[DVec3; 3], b: &[DVec3; 3]) -> bool {
+    let area = |t: &[DVec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length_squared();
+    let (a, b) = if area(b) > area(a) { (b, a) } else { (a, b) };
     let scale = a.iter().chain(b).map(|v| v.abs().max_element()).fold(0.0, f64::max);
     let tol = 4.0 * f32::EPSILON as f64 * scale;
     let (lo, hi) = (a[0].min(a[1]).min(a[2]), a[0].max(a[1]).max(a[2]));
@@ -2696,6 +2698,8 @@ fn coplanar_overlap(a: &[DVec3; 3], b: &[DVec3; 3]) -> bool {
     !edges(fa).chain(edges(fb)).any(separated_along)
 }
 
+/// Distance from `p` to the closest point of triangle `t` (Ericson, Real-Time Collision
+/// Detection, §5.1.5: classify p against the triangle's Voronoi regions).
 fn point_triangle_distance(p: DVec3, t: &[DVec3; 3]) -> f64 {
     let [a, b, c] = *t;
     let (ab, ac, ap) = (b - a, c - a, p - a);
