@@ -258,3 +258,28 @@ fn no_image_flag_writes_no_image_and_records_no_camera_effect() {
     assert_eq!(std::fs::read(out.join("flux.json")).unwrap(), std::fs::read(dir.join("out/flux.json")).unwrap());
     std::fs::remove_dir_all(dir).unwrap();
 }
+
+/// A run frees the digest lists it kept for reuse when it ends: held, they stayed allocated
+/// between the runs of a process that runs many scenes (the Python module). In process, unlike
+/// this file's other tests, so that it sees the run's own spare lists.
+#[test]
+fn a_run_releases_its_spare_pixel_lists_when_it_ends() {
+    use photon::detectors::film::spare_pixel_list_bytes;
+    use photon::run::{apply_options, simulate_observed, RunOptions};
+    let toml = cornell_toml().replace("resolution = [512, 512]", "resolution = [64, 64]");
+    let mut scene = common::scene(&toml);
+    let opts = RunOptions { photons: Some(4 * 16_384), seed: Some(3), threads: Some(2), ..Default::default() };
+    let chosen = apply_options(&mut scene, &opts).unwrap();
+    let mut held_during = 0;
+    let r = simulate_observed(&scene, &opts, &chosen, &std::sync::atomic::AtomicBool::new(false), &mut |p| {
+        // Adding the held batches hands their lists to the spares.
+        if let Some(film) = p.film {
+            film.flush();
+        }
+        held_during = held_during.max(spare_pixel_list_bytes());
+    })
+    .unwrap();
+    assert!(r.film.is_some());
+    assert!(held_during > 0, "the run kept no list for reuse: the test would not see a release");
+    assert_eq!(spare_pixel_list_bytes(), 0, "lists still held after the run");
+}

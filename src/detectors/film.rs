@@ -385,6 +385,22 @@ fn keep_pixel_lists(lists: &mut Vec<PixelList>) {
     }
 }
 
+/// Frees the spare digest lists. A run calls it when it ends: kept, a run's lists (up to
+/// `SPARE_PIXEL_LISTS_KEPT` of a few MB each) stayed allocated between runs of a process that
+/// runs many scenes (the Python module). The workers' own spares end with the run's threads.
+pub fn release_spare_pixel_lists() {
+    if let Ok(mut spare) = SPARE_PIXEL_LISTS.lock() {
+        *spare = Vec::new();
+    }
+}
+
+/// Bytes the spare digest lists hold allocated (for tests).
+pub fn spare_pixel_list_bytes() -> usize {
+    SPARE_PIXEL_LISTS
+        .lock()
+        .map_or(0, |spare| spare.iter().map(|l| l.capacity() * std::mem::size_of::<(u32, [f64; 4])>()).sum())
+}
+
 /// An empty splat list, with the capacity of one this thread used before where it has one.
 fn spare_list() -> Vec<Splat> {
     SPARE_LISTS.with_borrow_mut(|lists| lists.pop()).unwrap_or_default()

@@ -531,6 +531,7 @@ pub fn simulate_controlled(
     if let Some(f) = film.as_mut() {
         f.flush();
     }
+    crate::detectors::film::release_spare_pixel_lists();
     if let Some(p) = progress {
         p.bar.finish_and_clear();
     }
