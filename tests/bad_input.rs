@@ -1062,6 +1062,53 @@ fn map_on_a_sphere() {
     );
 }
 
+/// One mesh file used by many surfaces: each use is counted as it is read, so the scene is
+/// refused once their sum passes the cap, not after all are made (one file is bounded by its
+/// size; its uses were not). The cap is lowered to 1000 through `PHOTON_MAX_SCENE_TRIANGLES`.
+#[test]
+fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
+    // A closed cube of 12 triangles, used by 100 surfaces: 4 (the floor and the lamp, counted
+    // ahead) + 12·k passes 1000 at the 84th use, surfaces[84], with 1012.
+    let cube = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 8 7\nf 4 7 3\n\
+                f 1 5 8\nf 1 8 4\nf 2 3 7\nf 2 7 6\n";
+    let mut toml = BASE.to_string();
+    for k in 0..100 {
+        toml += &format!(
+            "\n[[surfaces]]\nname = \"cube{k}\"\nmaterial = \"white\"\nshape = {{ type = \"mesh\", file = \"cube.obj\", transform = {{ translate = [{}, 5, 0] }} }}\n",
+            2 * k
+        );
+    }
+    let run = |name: &str, limit: &str| {
+        let dir = case_dir(name);
+        fs::write(dir.join("scene.toml"), &toml).unwrap();
+        fs::write(dir.join("cube.obj"), cube).unwrap();
+        let args: Vec<String> = RUN.iter().map(|a| expand(a, &dir)).collect();
+        let out = Command::new(env!("CARGO_BIN_EXE_photon"))
+            .args(&args)
+            .current_dir(&dir)
+            .env("PHOTON_MAX_SCENE_TRIANGLES", limit)
+            .output()
+            .unwrap();
+        (dir, out)
+    };
+    let (dir, out) = run("mesh-uses-over-limit", "1000");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let line = line_of(&toml, "name = \"cube83\"") + 2;
+    for part in [
+        format!("scene.toml:{line}: `surfaces[84].shape`"),
+        "make 1012 triangles up to this one, more than 1000".to_string(),
+        "PHOTON_MAX_SCENE_TRIANGLES".to_string(),
+    ] {
+        assert!(err.contains(&part), "missing {part:?} in: {err}");
+    }
+    assert!(!dir.join("out").exists(), "a refused scene left an output folder");
+    // Under a cap its 1204 triangles fit, the same scene runs.
+    let (_dir, out) = run("mesh-uses-under-limit", "1204");
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 #[test]
 fn too_many_triangles_are_refused_before_they_are_made() {
     // 103 spheres of 20·4⁹ = 5 242 880 triangles: 540 M, past the 2²⁹ the tree can index on any

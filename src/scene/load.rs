@@ -71,7 +71,17 @@ const BYTES_PER_TRIANGLE: u64 = 512;
 
 /// The most triangles a scene may have, and why: what the tree can index, or what fits in the
 /// memory this machine has available now (Linux's MemAvailable) at `BYTES_PER_TRIANGLE`.
+/// `PHOTON_MAX_SCENE_TRIANGLES` lowers it (never raises it), so tests can reach it cheaply.
 fn max_scene_triangles() -> (u64, String) {
+    let lowered = std::env::var("PHOTON_MAX_SCENE_TRIANGLES").ok().and_then(|v| v.parse::<u64>().ok());
+    let (cap, why) = machine_max_scene_triangles();
+    match lowered {
+        Some(n) if n < cap => (n, "the limit PHOTON_MAX_SCENE_TRIANGLES sets".to_string()),
+        _ => (cap, why),
+    }
+}
+
+fn machine_max_scene_triangles() -> (u64, String) {
     let index = crate::geometry::MAX_TRIANGLES as u64 - 1;
     let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
         let line = m.lines().find(|l| l.starts_with("MemAvailable:"))?;
@@ -86,6 +96,38 @@ fn max_scene_triangles() -> (u64, String) {
             ),
         ),
         _ => (index, "the most a scene's tree can index".to_string()),
+    }
+}
+
+/// The scene's triangles counted against `max_scene_triangles`.
+struct TriangleBudget {
+    cap: u64,
+    why: String,
+    total: u64,
+}
+
+impl TriangleBudget {
+    /// Counts `n` more triangles, those of the shape at `key`; refuses past the cap.
+    fn add(&mut self, file: &Path, n: u64, key: &str, line: usize) -> R<()> {
+        self.total = self.total.saturating_add(n);
+        if self.total > self.cap {
+            let (total, cap, why) = (self.total, self.cap, &self.why);
+            return Err(InputError::new(
+                file,
+                key.to_string(),
+                Some(line),
+                format!("the scene's shapes make {total} triangles up to this one, more than {cap}: {why}"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Counts a mesh's triangles once its file is read (its size was not known ahead).
+    fn add_mesh(&mut self, file: &Path, shape: &ShapeSpec, n: usize, key: &str, line: usize) -> R<()> {
+        match shape {
+            ShapeSpec::Mesh { .. } => self.add(file, n as u64, key, line),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -296,12 +338,15 @@ impl<'s> Loader<'s> {
         let mut light_specs = self.light_specs(root, &material_index, range, &mut names)?;
         let camera = root.with("camera", |n| self.camera(n.table()?, unit_m))?;
         let shapes = entries.iter().enumerate().map(|(i, e)| (index_path("surfaces", i), &e.shape, e.shape_line));
-        self.check_triangle_budget(shapes.chain(light_specs.iter().map(|l| (l.path.clone(), &l.shape, l.shape_line))))?;
+        let mut budget = self.check_triangle_budget(
+            shapes.chain(light_specs.iter().map(|l| (l.path.clone(), &l.shape, l.shape_line))),
+        )?;
 
         // Triangulate in metres (f64): surfaces first, then area lights.
         let mut warnings = Vec::new();
-        let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut warnings)?;
-        let (point_positions, ray_sets) = self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut warnings)?;
+        let mut shaped = self.triangulate_surfaces(&entries, unit_m, &mut budget, &mut warnings)?;
+        let (point_positions, ray_sets) =
+            self.place_lights(&mut light_specs, unit_m, &mut shaped, &mut budget, &mut warnings)?;
         // Ray sets count toward the scene's box by their extremes.
         let ray_box: Vec<Option<(DVec3, DVec3)>> = ray_sets
             .iter()
@@ -882,34 +927,40 @@ impl<'s> Loader<'s> {
         Ok(power)
     }
 
-    /// Refuses, before any is made, a scene whose shapes of known size (all but meshes, which their
-    /// files bound) make more triangles than `max_scene_triangles` allows: 100 spheres of 5·10⁶
-    /// triangles must not fill the memory on their way to a refusal.
-    fn check_triangle_budget<'e>(&self, shapes: impl Iterator<Item = (String, &'e ShapeSpec, usize)>) -> R<()> {
+    /// Refuses, before any is made, a scene whose shapes of known size (all but meshes) make more
+    /// triangles than `max_scene_triangles` allows: 100 spheres of 5·10⁶ triangles must not fill
+    /// the memory on their way to a refusal. The budget it returns counts meshes as they are read
+    /// (`TriangleBudget::add_mesh`): one file is bounded by its size, but not the same file used
+    /// by a thousand surfaces.
+    fn check_triangle_budget<'e>(
+        &self,
+        shapes: impl Iterator<Item = (String, &'e ShapeSpec, usize)>,
+    ) -> R<TriangleBudget> {
         let (cap, why) = max_scene_triangles();
-        let mut total = 0u64;
+        let mut budget = TriangleBudget { cap, why, total: 0 };
         for (entry, shape, line) in shapes {
-            total = total.saturating_add(shape.triangle_count().unwrap_or(0));
-            if total > cap {
-                return Err(InputError::new(
-                    self.src.file,
-                    child_path(&entry, "shape"),
-                    Some(line),
-                    format!("the scene's shapes make {total} triangles up to this one, more than {cap}: {why}"),
-                ));
+            if let Some(n) = shape.triangle_count() {
+                budget.add(self.src.file, n, &child_path(&entry, "shape"), line)?;
             }
         }
-        Ok(())
+        Ok(budget)
     }
 
     /// Each surface's shape as triangles in metres (f64); a map over a mesh needs texture
     /// coordinates that enclose area on every face.
-    fn triangulate_surfaces(&self, entries: &[Entry], unit_m: f64, warnings: &mut Vec<String>) -> R<Vec<Shaped>> {
+    fn triangulate_surfaces(
+        &self,
+        entries: &[Entry],
+        unit_m: f64,
+        budget: &mut TriangleBudget,
+        warnings: &mut Vec<String>,
+    ) -> R<Vec<Shaped>> {
         let mut shaped: Vec<Shaped> = Vec::new();
         for (i, e) in entries.iter().enumerate() {
             let key = child_path(&index_path("surfaces", i), "shape");
             let shapes::Triangles { tris: t, tangents, uvs, normals } =
                 shapes::triangulate(&e.shape, self.src, &key, e.shape_line, warnings)?;
+            budget.add_mesh(self.src.file, &e.shape, t.len(), &key, e.shape_line)?;
             let tris = self.in_metres(t, unit_m, &key, e.shape_line)?;
             if let (Some((_, None)), None) = (&e.map, &uvs) {
                 return Err(InputError::new(
@@ -963,6 +1014,7 @@ impl<'s> Loader<'s> {
         light_specs: &mut [LightSpec],
         unit_m: f64,
         shaped: &mut Vec<Shaped>,
+        budget: &mut TriangleBudget,
         warnings: &mut Vec<String>,
     ) -> R<(Vec<Option<(DVec3, DVec3)>>, Vec<Option<crate::scene::rays::RaySet>>)> {
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
@@ -1012,6 +1064,7 @@ impl<'s> Loader<'s> {
                 other => {
                     let shapes::Triangles { tris: t, tangents, normals, .. } =
                         shapes::triangulate(other, self.src, &key, spec.shape_line, warnings)?;
+                    budget.add_mesh(self.src.file, other, t.len(), &key, spec.shape_line)?;
                     let tris = self.in_metres(t, unit_m, &key, spec.shape_line)?;
                     let (name, material, line) = (spec.name.clone(), spec.material, spec.shape_line);
                     shaped.push(Shaped {
