@@ -1098,7 +1098,7 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
     let line = line_of(&toml, "name = \"cube83\"") + 2;
     for part in [
         format!("scene.toml:{line}: `surfaces[84].shape`"),
-        "make 1012 triangles up to this one, more than 1000".to_string(),
+        "the scene's generated shapes and the meshes read so far make 1012 triangles, more than 1000".to_string(),
         "PHOTON_MAX_SCENE_TRIANGLES".to_string(),
     ] {
         assert!(err.contains(&part), "missing {part:?} in: {err}");
@@ -1107,6 +1107,25 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
     // Under a cap its 1204 triangles fit, the same scene runs.
     let (_dir, out) = run("mesh-uses-under-limit", "1204");
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    // A light's mesh counts too: the base scene's lamp made of the cube, under a limit of 13
+    // (the floor's 2 and the lamp's 12 make 14).
+    let dir = case_dir("mesh-light-over-limit");
+    let lamp = BASE.lines().find(|l| l.starts_with("shape") && l.contains("[0, 1, 0]")).unwrap();
+    let toml = BASE.replace(lamp, "shape = { type = \"mesh\", file = \"cube.obj\" }");
+    fs::write(dir.join("scene.toml"), &toml).unwrap();
+    fs::write(dir.join("cube.obj"), cube).unwrap();
+    let args: Vec<String> = RUN.iter().map(|a| expand(a, &dir)).collect();
+    let out = Command::new(env!("CARGO_BIN_EXE_photon"))
+        .args(&args)
+        .current_dir(&dir)
+        .env("PHOTON_MAX_SCENE_TRIANGLES", "13")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    let line = line_of(&toml, "cube.obj");
+    assert!(err.contains(&format!("scene.toml:{line}: `lights[0].shape`")), "{err}");
+    assert!(err.contains("make 14 triangles, more than 13"), "{err}");
 }
 
 #[test]

@@ -261,7 +261,8 @@ fn no_image_flag_writes_no_image_and_records_no_camera_effect() {
 
 /// A run frees the digest lists it kept for reuse when it ends: held, they stayed allocated
 /// between the runs of a process that runs many scenes (the Python module). In process, unlike
-/// this file's other tests, so that it sees the run's own spare lists.
+/// this file's other tests, so that it sees the run's own spare lists: the pool is global, so
+/// another in-process run in this file would make the last assertion racy.
 #[test]
 fn a_run_releases_its_spare_pixel_lists_when_it_ends() {
     use photon::detectors::film::spare_pixel_list_bytes;

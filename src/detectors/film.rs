@@ -388,6 +388,7 @@ fn keep_pixel_lists(lists: &mut Vec<PixelList>) {
 /// Frees the spare digest lists. A run calls it when it ends: kept, a run's lists (up to
 /// `SPARE_PIXEL_LISTS_KEPT` of a few MB each) stayed allocated between runs of a process that
 /// runs many scenes (the Python module). The workers' own spares end with the run's threads.
+#[doc(hidden)]
 pub fn release_spare_pixel_lists() {
     if let Ok(mut spare) = SPARE_PIXEL_LISTS.lock() {
         *spare = Vec::new();
@@ -395,6 +396,7 @@ pub fn release_spare_pixel_lists() {
 }
 
 /// Bytes the spare digest lists hold allocated (for tests).
+#[doc(hidden)]
 pub fn spare_pixel_list_bytes() -> usize {
     SPARE_PIXEL_LISTS
         .lock()

@@ -301,6 +301,15 @@ pub fn simulate_controlled(
     interrupt: &AtomicBool,
     observer: &mut dyn FnMut(Progress) -> Option<StopReason>,
 ) -> Result<RunResult, Error> {
+    // However the run ends (a failed batch, an error, a panic unwinding), its spare digest lists
+    // are freed when this returns (`release_spare_pixel_lists`).
+    struct ReleaseSpareLists;
+    impl Drop for ReleaseSpareLists {
+        fn drop(&mut self) {
+            crate::detectors::film::release_spare_pixel_lists();
+        }
+    }
+    let _release = ReleaseSpareLists;
     let threads = opts.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -531,7 +540,6 @@ pub fn simulate_controlled(
     if let Some(f) = film.as_mut() {
         f.flush();
     }
-    crate::detectors::film::release_spare_pixel_lists();
     if let Some(p) = progress {
         p.bar.finish_and_clear();
     }

@@ -73,7 +73,13 @@ const BYTES_PER_TRIANGLE: u64 = 512;
 /// memory this machine has available now (Linux's MemAvailable) at `BYTES_PER_TRIANGLE`.
 /// `PHOTON_MAX_SCENE_TRIANGLES` lowers it (never raises it), so tests can reach it cheaply.
 fn max_scene_triangles() -> (u64, String) {
-    let lowered = std::env::var("PHOTON_MAX_SCENE_TRIANGLES").ok().and_then(|v| v.parse::<u64>().ok());
+    let lowered = std::env::var("PHOTON_MAX_SCENE_TRIANGLES").ok().and_then(|v| {
+        let n = v.trim().parse::<u64>().ok();
+        if n.is_none() {
+            eprintln!("warning: PHOTON_MAX_SCENE_TRIANGLES={v:?} is not a whole number of triangles; ignored");
+        }
+        n
+    });
     let (cap, why) = machine_max_scene_triangles();
     match lowered {
         Some(n) if n < cap => (n, "the limit PHOTON_MAX_SCENE_TRIANGLES sets".to_string()),
@@ -99,7 +105,8 @@ fn machine_max_scene_triangles() -> (u64, String) {
     }
 }
 
-/// The scene's triangles counted against `max_scene_triangles`.
+/// The scene's triangles counted against `max_scene_triangles`: first every shape of known
+/// size, then each mesh as its file is read.
 struct TriangleBudget {
     cap: u64,
     why: String,
@@ -107,25 +114,27 @@ struct TriangleBudget {
 }
 
 impl TriangleBudget {
-    /// Counts `n` more triangles, those of the shape at `key`; refuses past the cap.
-    fn add(&mut self, file: &Path, n: u64, key: &str, line: usize) -> R<()> {
+    /// Counts `n` more triangles, those of the shape at `key`; refuses past the cap. `ahead`:
+    /// counting the shapes of known size, in file order (else a mesh, after all of those).
+    fn add(&mut self, file: &Path, n: u64, key: &str, line: usize, ahead: bool) -> R<()> {
         self.total = self.total.saturating_add(n);
         if self.total > self.cap {
             let (total, cap, why) = (self.total, self.cap, &self.why);
-            return Err(InputError::new(
-                file,
-                key.to_string(),
-                Some(line),
-                format!("the scene's shapes make {total} triangles up to this one, more than {cap}: {why}"),
-            ));
+            let made = if ahead {
+                format!("the scene's shapes make {total} triangles up to this one")
+            } else {
+                format!("the scene's generated shapes and the meshes read so far make {total} triangles")
+            };
+            return Err(InputError::new(file, key.to_string(), Some(line), format!("{made}, more than {cap}: {why}")));
         }
         Ok(())
     }
 
-    /// Counts a mesh's triangles once its file is read (its size was not known ahead).
+    /// Counts a mesh's triangles once its file is read (its size was not known ahead); other
+    /// shapes were counted ahead.
     fn add_mesh(&mut self, file: &Path, shape: &ShapeSpec, n: usize, key: &str, line: usize) -> R<()> {
         match shape {
-            ShapeSpec::Mesh { .. } => self.add(file, n as u64, key, line),
+            ShapeSpec::Mesh { .. } => self.add(file, n as u64, key, line, false),
             _ => Ok(()),
         }
     }
@@ -940,7 +949,7 @@ impl<'s> Loader<'s> {
         let mut budget = TriangleBudget { cap, why, total: 0 };
         for (entry, shape, line) in shapes {
             if let Some(n) = shape.triangle_count() {
-                budget.add(self.src.file, n, &child_path(&entry, "shape"), line)?;
+                budget.add(self.src.file, n, &child_path(&entry, "shape"), line, true)?;
             }
         }
         Ok(budget)
