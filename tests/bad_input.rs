@@ -1079,9 +1079,10 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
             2 * k
         );
     }
-    let run = |name: &str, limit: &str| {
+    // `photon run` on `scene` beside cube.obj, with the limit lowered to `limit`.
+    let run = |name: &str, scene: &str, limit: &str| {
         let dir = case_dir(name);
-        fs::write(dir.join("scene.toml"), &toml).unwrap();
+        fs::write(dir.join("scene.toml"), scene).unwrap();
         fs::write(dir.join("cube.obj"), cube).unwrap();
         let args: Vec<String> = RUN.iter().map(|a| expand(a, &dir)).collect();
         let out = Command::new(env!("CARGO_BIN_EXE_photon"))
@@ -1092,7 +1093,7 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
             .unwrap();
         (dir, out)
     };
-    let (dir, out) = run("mesh-uses-over-limit", "1000");
+    let (dir, out) = run("mesh-uses-over-limit", &toml, "1000");
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     let line = line_of(&toml, "name = \"cube83\"") + 2;
@@ -1105,25 +1106,16 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
     }
     assert!(!dir.join("out").exists(), "a refused scene left an output folder");
     // Under a cap its 1204 triangles fit, the same scene runs.
-    let (_dir, out) = run("mesh-uses-under-limit", "1204");
+    let (_dir, out) = run("mesh-uses-under-limit", &toml, "1204");
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
     // A light's mesh counts too: the base scene's lamp made of the cube, under a limit of 13
     // (the floor's 2 and the lamp's 12 make 14).
-    let dir = case_dir("mesh-light-over-limit");
     let lamp = BASE.lines().find(|l| l.starts_with("shape") && l.contains("[0, 1, 0]")).unwrap();
-    let toml = BASE.replace(lamp, "shape = { type = \"mesh\", file = \"cube.obj\" }");
-    fs::write(dir.join("scene.toml"), &toml).unwrap();
-    fs::write(dir.join("cube.obj"), cube).unwrap();
-    let args: Vec<String> = RUN.iter().map(|a| expand(a, &dir)).collect();
-    let out = Command::new(env!("CARGO_BIN_EXE_photon"))
-        .args(&args)
-        .current_dir(&dir)
-        .env("PHOTON_MAX_SCENE_TRIANGLES", "13")
-        .output()
-        .unwrap();
+    let lamp_toml = BASE.replace(lamp, "shape = { type = \"mesh\", file = \"cube.obj\" }");
+    let (_dir, out) = run("mesh-light-over-limit", &lamp_toml, "13");
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    let line = line_of(&toml, "cube.obj");
+    let line = line_of(&lamp_toml, "cube.obj");
     assert!(err.contains(&format!("scene.toml:{line}: `lights[0].shape`")), "{err}");
     assert!(err.contains("make 14 triangles, more than 13"), "{err}");
 }

@@ -130,12 +130,12 @@ impl TriangleBudget {
         Ok(())
     }
 
-    /// Counts a mesh's triangles once its file is read (its size was not known ahead); other
-    /// shapes were counted ahead.
+    /// Counts the `n` triangles of a shape whose count was not known ahead (a mesh, once its file
+    /// is read); the others were counted ahead (`ShapeSpec::triangle_count`).
     fn add_mesh(&mut self, file: &Path, shape: &ShapeSpec, n: usize, key: &str, line: usize) -> R<()> {
-        match shape {
-            ShapeSpec::Mesh { .. } => self.add(file, n as u64, key, line, false),
-            _ => Ok(()),
+        match shape.triangle_count() {
+            None => self.add(file, n as u64, key, line, false),
+            Some(_) => Ok(()),
         }
     }
 }
