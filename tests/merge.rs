@@ -184,3 +184,71 @@ fn a_changed_scene_and_bad_batch_ranges_are_refused() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A copy of part `from` as `to`, its state's body edited by `edit(bytes, body_start)` and its
+/// checksum made to match again: a state that no run writes but that reads as whole.
+fn crafted(from: &Path, to: &Path, edit: impl Fn(&mut [u8], usize)) -> PathBuf {
+    let mut bytes = std::fs::read(from.join("state.photon")).unwrap();
+    // Magic (16 bytes), version (u32), header length n (u32), header: the body starts after.
+    let n = u32::from_le_bytes(bytes[20..24].try_into().unwrap()) as usize;
+    edit(&mut bytes, 24 + n);
+    let end = bytes.len() - 8;
+    let check =
+        bytes[..end].iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    bytes[end..].copy_from_slice(&check.to_le_bytes());
+    std::fs::create_dir_all(to).unwrap();
+    std::fs::write(to.join("state.photon"), &bytes).unwrap();
+    to.to_path_buf()
+}
+
+#[test]
+fn crafted_states_whose_sums_overflow_are_refused() {
+    let dir = common::temp_dir("merge-overflow");
+    let cornell = scene("cornell_box.toml");
+    let part = |name: &str, range: &str| {
+        let out = dir.join(name);
+        let args = ["run", cornell.to_str().unwrap(), "--batches", range, "--no-image", "--quiet", "--out"];
+        ok(&[&args[..], &[out.to_str().unwrap()]].concat());
+        out
+    };
+    let (a, b) = (part("a", "0..1"), part("b", "1..2"));
+    // The body: 12 counts (u64), the trace seconds (f64), then the escaped sum (top i32, three
+    // i64 words). Words near i64::MAX in both parts overflow when added, however their windows
+    // align (a shift of 0, 1 or 2 words still adds one pair); a run's words stay below 2^63 for
+    // up to 2^35 batches (`exact::MAX_VALUES`), so only a crafted state reaches this.
+    let huge_words = |bytes: &mut [u8], body: usize| {
+        for k in 0..3 {
+            let at = body + 12 * 8 + 8 + 4 + 8 * k;
+            bytes[at..at + 8].copy_from_slice(&(i64::MAX - 1).to_le_bytes());
+        }
+    };
+    let huge_count =
+        |bytes: &mut [u8], body: usize| bytes[body..body + 8].copy_from_slice(&(u64::MAX - 1).to_le_bytes());
+    let endless = |bytes: &mut [u8], body: usize| {
+        bytes[body + 96..body + 104].copy_from_slice(&f64::INFINITY.to_le_bytes());
+    };
+    let cases: [(&str, [PathBuf; 2], &str); 3] = [
+        (
+            "escaped sums near 2^63",
+            [crafted(&a, &dir.join("a-sum"), huge_words), crafted(&b, &dir.join("b-sum"), huge_words)],
+            "exact sums overflow",
+        ),
+        (
+            "photon counts near 2^64",
+            [crafted(&a, &dir.join("a-count"), huge_count), crafted(&b, &dir.join("b-count"), huge_count)],
+            "counts overflow",
+        ),
+        ("infinite trace seconds", [a.clone(), crafted(&b, &dir.join("b-time"), endless)], "not a run's time"),
+    ];
+    let out = dir.join("merged");
+    for (what, [x, y], message) in cases {
+        let (code, err) =
+            photon(&["merge", "--quiet", "--out", out.to_str().unwrap(), x.to_str().unwrap(), y.to_str().unwrap()]);
+        assert_eq!(code, 2, "{what}: exit status {code}, stderr {err}");
+        assert!(err.contains(message), "{what}: the message should say \"{message}\": {err}");
+        assert!(!out.exists(), "{what}: a refused merge wrote {}", out.display());
+    }
+    // The uncrafted parts merge.
+    ok(&["merge", "--quiet", "--out", out.to_str().unwrap(), a.to_str().unwrap(), b.to_str().unwrap()]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

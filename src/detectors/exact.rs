@@ -98,22 +98,25 @@ impl ExactSum {
         }
     }
 
-    /// Adds another sum: the result is the sum of both sets of values.
-    pub fn add_sum(&mut self, other: &ExactSum) {
-        if other.top == EMPTY {
-            return;
+    /// Adds another sum: the result is the sum of both sets of values. Sums of at most
+    /// `MAX_VALUES` values in all never overflow; `Overflow` (and `self` left unchanged) means
+    /// more, which only a state file that no run wrote can hold.
+    pub fn add_sum(&mut self, other: &ExactSum) -> Result<(), Overflow> {
+        if other.top == EMPTY || self.top == POISONED {
+            return Ok(());
         }
         if other.top == POISONED {
             *self = ExactSum { top: POISONED, words: [0; 3] };
+            return Ok(());
         }
-        if self.top == POISONED {
-            return;
-        }
-        self.raise_top(other.top);
-        let shift = (self.top - other.top) as usize;
+        let mut sum = *self;
+        sum.raise_top(other.top);
+        let shift = (sum.top - other.top) as usize;
         for k in 0..3usize.saturating_sub(shift) {
-            self.words[k + shift] += other.words[k];
+            sum.words[k + shift] = sum.words[k + shift].checked_add(other.words[k]).ok_or(Overflow)?;
         }
+        *self = sum;
+        Ok(())
     }
 
     /// Moves the window up to slot `t`, dropping the words that fall below it.
@@ -192,11 +195,22 @@ fn scale_by_power_of_two(mut x: f64, mut e: i32) -> f64 {
     x * pow2(e)
 }
 
-/// Element-wise `ExactSum`s behind a vector of f64 totals.
-pub fn add_all(into: &mut [ExactSum], from: &[ExactSum]) {
-    for (a, b) in into.iter_mut().zip(from) {
-        a.add_sum(b);
+/// A merge of sums whose words would overflow: more values than `MAX_VALUES` in all.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Overflow;
+
+impl std::fmt::Display for Overflow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("its exact sums overflow when added to the others': no run of photon writes such a state")
     }
+}
+
+/// Element-wise `ExactSum`s behind a vector of f64 totals.
+pub fn add_all(into: &mut [ExactSum], from: &[ExactSum]) -> Result<(), Overflow> {
+    for (a, b) in into.iter_mut().zip(from) {
+        a.add_sum(b)?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -304,7 +318,7 @@ mod tests {
                 }
                 let mut total = ExactSum::default();
                 for g in &groups {
-                    total.add_sum(g);
+                    total.add_sum(g).unwrap();
                 }
                 assert_eq!(total, whole);
                 assert_eq!(total.value().to_bits(), whole.value().to_bits());
@@ -383,5 +397,22 @@ mod tests {
         let mut bad = s.to_bytes();
         bad[..4].copy_from_slice(&100i32.to_le_bytes());
         assert_eq!(ExactSum::from_bytes(&bad), None);
+    }
+
+    #[test]
+    fn a_merge_that_would_overflow_is_refused_and_changes_nothing() {
+        // Words near 2^63 (more than `MAX_VALUES` values' worth): only a crafted state has them.
+        let mut bytes = sum_of(&[1.0]).to_bytes();
+        for k in 0..3 {
+            bytes[4 + 8 * k..12 + 8 * k].copy_from_slice(&(i64::MAX - 1).to_le_bytes());
+        }
+        let huge = ExactSum::from_bytes(&bytes).unwrap();
+        let mut total = huge;
+        assert_eq!(total.add_sum(&huge), Err(Overflow));
+        assert_eq!(total, huge);
+        // Within the bound, merges add.
+        let mut one = sum_of(&[1.0]);
+        assert_eq!(one.add_sum(&sum_of(&[2.0])), Ok(()));
+        assert_eq!(one.value(), 3.0);
     }
 }

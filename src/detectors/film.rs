@@ -25,7 +25,7 @@ use std::sync::Mutex;
 use glam::{DVec3, Vec3A};
 use ndarray::{Array2, Array3};
 
-use super::exact::ExactSum;
+use super::exact::{ExactSum, Overflow};
 use crate::scene::Camera;
 
 pub struct CameraModel {
@@ -480,10 +480,11 @@ impl PixelSums {
         }
     }
 
-    fn add_sums(&mut self, o: &PixelSums) {
+    fn add_sums(&mut self, o: &PixelSums) -> Result<(), Overflow> {
         for (s, x) in self.0.iter_mut().zip(&o.0) {
-            s.add_sum(x);
+            s.add_sum(x)?;
         }
+        Ok(())
     }
 
     fn values(&self) -> [f64; 4] {
@@ -709,12 +710,14 @@ impl Film {
         }
         self.assert_flushed();
         o.assert_flushed();
+        // Only a state that no run wrote makes a count or a sum overflow: refused, not wrapped.
+        let wrapped = || "its film's counts overflow when added to the others': no run of photon writes such a state";
+        self.photons = self.photons.checked_add(o.photons).ok_or_else(wrapped)?;
+        self.film_batches = self.film_batches.checked_add(o.film_batches).ok_or_else(wrapped)?;
         for (a, b) in self.pixels.iter_mut().zip(&o.pixels) {
-            a.add_sums(b);
+            a.add_sums(b).map_err(|e| e.to_string())?;
         }
-        self.image_y_sq_over_n.add_sum(&o.image_y_sq_over_n);
-        self.photons += o.photons;
-        self.film_batches += o.film_batches;
+        self.image_y_sq_over_n.add_sum(&o.image_y_sq_over_n).map_err(|e| e.to_string())?;
         match (&mut self.camera, &o.camera) {
             (_, None) => {}
             (None, Some(oc)) => self.camera = Some(oc.clone()),
@@ -723,7 +726,7 @@ impl Film {
                     return Err("the films' camera parts cover different pixels".into());
                 }
                 for (a, b) in cam.sums.iter_mut().zip(&oc.sums) {
-                    a.add_sums(b);
+                    a.add_sums(b).map_err(|e| e.to_string())?;
                 }
                 for (a, b) in cam.count.iter_mut().zip(&oc.count) {
                     *a = a.checked_add(*b).ok_or("a pixel has more than 2³² camera samples")?;

@@ -254,10 +254,10 @@ impl ChannelSums {
         }
     }
 
-    fn add_sums(&mut self, o: &ChannelSums) {
-        exact::add_all(&mut self.sum, &o.sum);
-        exact::add_all(&mut self.sum_sq, &o.sum_sq);
-        exact::add_all(&mut self.batch_sq, &o.batch_sq);
+    fn add_sums(&mut self, o: &ChannelSums) -> Result<(), exact::Overflow> {
+        exact::add_all(&mut self.sum, &o.sum)?;
+        exact::add_all(&mut self.sum_sq, &o.sum_sq)?;
+        exact::add_all(&mut self.batch_sq, &o.batch_sq)
     }
 
     fn round_into(&self, view: &mut Channel) {
@@ -313,6 +313,21 @@ impl Counters {
         self.phase_samples += o.phase_samples;
         self.reemissions += o.reemissions;
         self.trace_seconds += o.trace_seconds;
+    }
+
+    /// `merge` for another run's counters (a state file's): None where a count would wrap.
+    fn checked_merge(&self, o: &Counters) -> Option<Counters> {
+        Some(Counters {
+            rays: self.rays.checked_add(o.rays)?,
+            shadow_rays: self.shadow_rays.checked_add(o.shadow_rays)?,
+            fresnel_evaluations: self.fresnel_evaluations.checked_add(o.fresnel_evaluations)?,
+            wavelength_samples: self.wavelength_samples.checked_add(o.wavelength_samples)?,
+            splats: self.splats.checked_add(o.splats)?,
+            free_flights: self.free_flights.checked_add(o.free_flights)?,
+            phase_samples: self.phase_samples.checked_add(o.phase_samples)?,
+            reemissions: self.reemissions.checked_add(o.reemissions)?,
+            trace_seconds: self.trace_seconds + o.trace_seconds,
+        })
     }
 }
 
@@ -451,13 +466,22 @@ impl Tallies {
         {
             return Err("the tallies are sized for different scenes".into());
         }
+        // Only a state that no run wrote makes a count or a sum overflow: refused, not wrapped
+        // (a refused merge writes nothing, so what was added before the error does not matter).
+        let wrapped = || "its counts overflow when added to the others': no run of photon writes such a state";
+        let photons = self.photons.checked_add(b.photons).ok_or_else(wrapped)?;
+        let batches = self.batches.checked_add(b.batches).ok_or_else(wrapped)?;
+        let scatterings = self.scatterings.checked_add(b.scatterings).ok_or_else(wrapped)?;
+        let scatterings_sq = self.scatterings_sq.checked_add(b.scatterings_sq).ok_or_else(wrapped)?;
+        let counters = self.counters.checked_merge(&b.counters).ok_or_else(wrapped)?;
         for (a, o) in sums.channels.iter_mut().zip(&other.channels) {
-            a.add_sums(o);
+            a.add_sums(o).map_err(|e| e.to_string())?;
         }
-        sums.escaped.add_sum(&other.escaped);
-        sums.truncated.add_sum(&other.truncated);
-        self.batches += b.batches;
-        self.add_counts(b);
+        sums.escaped.add_sum(&other.escaped).map_err(|e| e.to_string())?;
+        sums.truncated.add_sum(&other.truncated).map_err(|e| e.to_string())?;
+        (self.photons, self.batches, self.scatterings, self.scatterings_sq) =
+            (photons, batches, scatterings, scatterings_sq);
+        self.counters = counters;
         self.round_views();
         Ok(())
     }

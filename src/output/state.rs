@@ -300,6 +300,12 @@ pub fn part_from_bytes(bytes: &[u8], origin: &Path) -> Result<Part, Error> {
         })
 }
 
+/// A part's time in seconds: the sum over any number of parts must stay finite (run.json
+/// writes it), so a part's is bounded, at 10¹² s (32 000 years), far above any run's.
+fn plausible_seconds(s: f64) -> bool {
+    (0.0..=1e12).contains(&s)
+}
+
 type Decoded = (StateHeader, Counts, TallySums, Option<FilmState>);
 
 fn decode(bytes: &[u8]) -> Result<Decoded, String> {
@@ -340,7 +346,14 @@ fn decode(bytes: &[u8]) -> Result<Decoded, String> {
         },
     };
     let mut counts = counts;
+    let at = r.at;
     counts.counters.trace_seconds = r.f64("the trace seconds")?;
+    if !plausible_seconds(counts.counters.trace_seconds) {
+        return Err(format!("the trace seconds at byte {at} are {}, not a run's time", counts.counters.trace_seconds));
+    }
+    if !plausible_seconds(header.wall_seconds) {
+        return Err(format!("its header's wall_seconds is {}, not a run's time", header.wall_seconds));
+    }
     let escaped = r.sum("the escaped sum")?;
     let truncated = r.sum("the truncated sum")?;
     let channels = r.u32("the channel count")? as usize;
