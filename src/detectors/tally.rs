@@ -40,11 +40,18 @@ impl Moments {
     }
 }
 
+/// Rows up to which `HistoryScores` folds every row at a history's end instead of listing the
+/// touched ones.
+const DENSE_ROWS: usize = 16;
+
 /// Accumulates one history's scores per surface, then folds them into `Moments` when the history
 /// ends, so Σx² is over whole histories (a photon hitting a surface twice scores 2, not 1 + 1).
 pub struct HistoryScores {
     value: Vec<f64>,
     touched: Vec<u32>,
+    /// Few rows (a box's surfaces): `add` keeps no touched list, and `flush` folds every row (an
+    /// untouched row adds 0 to Σx and Σx², which changes no bit).
+    dense: bool,
     /// Where a history's wavelength can change (fluorescence), each score times the luminous
     /// efficacy when it was added (`set_efficacy`); empty otherwise, and the history's one
     /// efficacy is applied at `flush_scaled`.
@@ -57,6 +64,7 @@ impl HistoryScores {
         HistoryScores {
             value: vec![0.0; surfaces],
             touched: Vec::with_capacity(64),
+            dense: surfaces <= DENSE_ROWS,
             luminous: Vec::new(),
             efficacy: 0.0,
         }
@@ -70,7 +78,7 @@ impl HistoryScores {
 
     /// As `new`, also keeping each score's lumens at the efficacy current when it was added.
     pub fn with_luminous(surfaces: usize) -> Self {
-        HistoryScores { luminous: vec![0.0; surfaces], ..HistoryScores::new(surfaces) }
+        HistoryScores { luminous: vec![0.0; surfaces], dense: false, ..HistoryScores::new(surfaces) }
     }
 
     /// The luminous efficacy (lm/W) of the scores added from now on (`with_luminous` only).
@@ -82,6 +90,10 @@ impl HistoryScores {
     #[inline]
     pub fn add(&mut self, surface: u32, x: f64) {
         let v = &mut self.value[surface as usize];
+        if self.dense {
+            *v += x;
+            return;
+        }
         if *v == 0.0 {
             self.touched.push(surface);
         }
@@ -102,6 +114,16 @@ impl HistoryScores {
     /// with `with_luminous` the lumens kept score by score.
     #[inline]
     pub fn flush_scaled(&mut self, into: &mut [Moments], mut luminous: Option<(&mut [Moments], f64)>) {
+        if self.dense {
+            for (s, v) in self.value.iter_mut().enumerate() {
+                into[s].add_history(*v);
+                if let Some((lum, k)) = luminous.as_mut() {
+                    lum[s].add_history(*v * *k);
+                }
+                *v = 0.0;
+            }
+            return;
+        }
         for &s in &self.touched {
             let v = &mut self.value[s as usize];
             into[s as usize].add_history(*v);
@@ -633,6 +655,34 @@ mod tests {
         h.flush(&mut m);
         assert_eq!(m[0], Moments { sum: 2.0, sum_sq: 4.0 });
         assert_eq!(m[1], Moments { sum: 1.0, sum_sq: 1.0 });
+    }
+
+    #[test]
+    fn dense_and_listed_history_scores_give_the_same_bits() {
+        // The same histories into DENSE_ROWS rows (folded whole) and into one row more (touched
+        // rows listed), with repeats, cancelling scores and histories that touch nothing.
+        let rows = DENSE_ROWS;
+        let (mut dense, mut listed) = (HistoryScores::new(rows), HistoryScores::new(rows + 1));
+        assert!(dense.dense && !listed.dense);
+        let (mut md, mut ml) = (vec![Moments::default(); rows], vec![Moments::default(); rows + 1]);
+        let (mut ld, mut ll) = (md.clone(), ml.clone());
+        let mut s = crate::sampling::Sampler::for_batch(7, 0);
+        for _ in 0..2000 {
+            for _ in 0..(s.uniform() * 6.0) as usize {
+                let row = (s.uniform() * rows as f64) as u32;
+                let x = if s.uniform() < 0.1 { -dense.value(row) } else { s.uniform() };
+                dense.add(row, x);
+                listed.add(row, x);
+            }
+            dense.flush_scaled(&mut md, Some((&mut ld, 683.0)));
+            listed.flush_scaled(&mut ml, Some((&mut ll, 683.0)));
+        }
+        for r in 0..rows {
+            for (a, b) in [(md[r], ml[r]), (ld[r], ll[r])] {
+                assert_eq!((a.sum.to_bits(), a.sum_sq.to_bits()), (b.sum.to_bits(), b.sum_sq.to_bits()), "row {r}");
+            }
+        }
+        assert!(md.iter().all(|m| m.sum > 0.0));
     }
 
     #[test]
