@@ -63,7 +63,7 @@ impl HistoryScores {
     pub fn new(surfaces: usize) -> Self {
         HistoryScores {
             value: vec![0.0; surfaces],
-            touched: Vec::with_capacity(64),
+            touched: if surfaces <= DENSE_ROWS { Vec::new() } else { Vec::with_capacity(64) },
             dense: surfaces <= DENSE_ROWS,
             luminous: Vec::new(),
             efficacy: 0.0,
@@ -78,7 +78,12 @@ impl HistoryScores {
 
     /// As `new`, also keeping each score's lumens at the efficacy current when it was added.
     pub fn with_luminous(surfaces: usize) -> Self {
-        HistoryScores { luminous: vec![0.0; surfaces], dense: false, ..HistoryScores::new(surfaces) }
+        HistoryScores {
+            luminous: vec![0.0; surfaces],
+            dense: false,
+            touched: Vec::with_capacity(64),
+            ..HistoryScores::new(surfaces)
+        }
     }
 
     /// The luminous efficacy (lm/W) of the scores added from now on (`with_luminous` only).
@@ -325,31 +330,48 @@ pub struct Counters {
 }
 
 impl Counters {
+    /// The counts, in the state file's order.
+    pub fn counts(&self) -> [u64; 8] {
+        [
+            self.rays,
+            self.shadow_rays,
+            self.fresnel_evaluations,
+            self.wavelength_samples,
+            self.splats,
+            self.free_flights,
+            self.phase_samples,
+            self.reemissions,
+        ]
+    }
+
+    fn counts_mut(&mut self) -> [&mut u64; 8] {
+        [
+            &mut self.rays,
+            &mut self.shadow_rays,
+            &mut self.fresnel_evaluations,
+            &mut self.wavelength_samples,
+            &mut self.splats,
+            &mut self.free_flights,
+            &mut self.phase_samples,
+            &mut self.reemissions,
+        ]
+    }
+
     pub fn merge(&mut self, o: &Counters) {
-        self.rays += o.rays;
-        self.shadow_rays += o.shadow_rays;
-        self.fresnel_evaluations += o.fresnel_evaluations;
-        self.wavelength_samples += o.wavelength_samples;
-        self.splats += o.splats;
-        self.free_flights += o.free_flights;
-        self.phase_samples += o.phase_samples;
-        self.reemissions += o.reemissions;
+        for (a, b) in self.counts_mut().into_iter().zip(o.counts()) {
+            *a += b;
+        }
         self.trace_seconds += o.trace_seconds;
     }
 
     /// `merge` for another run's counters (a state file's): None where a count would wrap.
     fn checked_merge(&self, o: &Counters) -> Option<Counters> {
-        Some(Counters {
-            rays: self.rays.checked_add(o.rays)?,
-            shadow_rays: self.shadow_rays.checked_add(o.shadow_rays)?,
-            fresnel_evaluations: self.fresnel_evaluations.checked_add(o.fresnel_evaluations)?,
-            wavelength_samples: self.wavelength_samples.checked_add(o.wavelength_samples)?,
-            splats: self.splats.checked_add(o.splats)?,
-            free_flights: self.free_flights.checked_add(o.free_flights)?,
-            phase_samples: self.phase_samples.checked_add(o.phase_samples)?,
-            reemissions: self.reemissions.checked_add(o.reemissions)?,
-            trace_seconds: self.trace_seconds + o.trace_seconds,
-        })
+        let mut sum = *self;
+        for (a, b) in sum.counts_mut().into_iter().zip(o.counts()) {
+            *a = a.checked_add(b)?;
+        }
+        sum.trace_seconds += o.trace_seconds;
+        Some(sum)
     }
 }
 

@@ -142,20 +142,7 @@ pub fn encode(scene: &Scene, r: &RunResult) -> Result<Vec<u8>, Error> {
     w.extend_from_slice(&json);
     let t = &r.tallies;
     let c = &t.counters;
-    for v in [
-        t.photons,
-        t.batches,
-        t.scatterings,
-        t.scatterings_sq,
-        c.rays,
-        c.shadow_rays,
-        c.fresnel_evaluations,
-        c.wavelength_samples,
-        c.splats,
-        c.free_flights,
-        c.phase_samples,
-        c.reemissions,
-    ] {
+    for v in [t.photons, t.batches, t.scatterings, t.scatterings_sq].into_iter().chain(c.counts()) {
         w.extend_from_slice(&v.to_le_bytes());
     }
     w.extend_from_slice(&c.trace_seconds.to_le_bytes());
