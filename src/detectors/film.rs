@@ -46,6 +46,17 @@ pub struct CameraModel {
     inv_pixel_area: f32,
 }
 
+/// What a convex polygon looks like from the eye (`CameraModel::polygon_image`).
+pub enum PolygonImage {
+    /// It passes within 10⁻⁴ of its own depth of the eye: the hit test's f32 rounding there
+    /// outgrows any margin, so it may be seen in any pixel.
+    Anywhere,
+    /// The corners of its part inside the view's pyramid in continuous pixel coordinates
+    /// [column, row] (a point in pixel (r, c) has column in [c, c + 1)), and that part's least
+    /// depth along the optical axis.
+    Corners(Vec<[f64; 2]>, f64),
+}
+
 /// Where a world point lands on the film, and the factor 1/(d² A_pix cos³θ_c) of its splat.
 #[derive(Clone, Copy, Debug)]
 pub struct Projection {
@@ -121,24 +132,64 @@ impl CameraModel {
     /// margin), so a lamp reaching behind the camera lists only the pixels it can be seen in; one
     /// passing within 10⁻⁴ of its depth of the eye gives the whole image.
     pub fn pixel_box(&self, triangle: &[Vec3A; 3]) -> Option<([usize; 2], [usize; 2])> {
+        let hull = triangle.iter().map(|&p| self.camera_space((p - self.position).as_dvec3())).collect();
         let (w, h) = (self.width as f64, self.height as f64);
-        // A pixel's margin, plus what a ray direction's f32 rounding (< 10⁻⁶ rad, up to
-        // (1 + tan²) image-plane units a radian off axis) spans in pixels: with a field of view of
-        // hundredths of a degree that is more than a pixel.
-        let margin = |half: f32, n: f64| {
-            let half = half as f64;
-            1.0 + (1e-6 * (1.0 + 2.0 * half * half) * n / (2.0 * half)).ceil()
+        let [mx, my] = self.view_margin();
+        let corners = match self.hull_image(hull)? {
+            PolygonImage::Anywhere => return Some(([0, self.width - 1], [0, self.height - 1])),
+            PolygonImage::Corners(corners, _) => corners,
         };
-        let (mx, my) = (margin(self.half_w, w), margin(self.half_h, h));
-        // Camera space in pixel units: column x/z + w/2, row h/2 − y/z.
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for [col, row] in corners {
+            lo = [lo[0].min(col), lo[1].min(row)];
+            hi = [hi[0].max(col), hi[1].max(row)];
+        }
+        let span = |lo: f64, hi: f64, n: usize, margin: f64| {
+            let first = (lo.floor() - margin).max(0.0) as usize;
+            let last = ((hi.floor() + margin).max(0.0) as usize).min(n - 1);
+            [first.min(n - 1), last]
+        };
+        if !(hi[0] >= -mx && lo[0] <= w + mx && hi[1] >= -my && lo[1] <= h + my) {
+            return None;
+        }
+        Some((span(lo[0], hi[0], self.width, mx), span(lo[1], hi[1], self.height, my)))
+    }
+
+    /// The image of a convex polygon given by its corners in world space (`PolygonImage`); None
+    /// when no part of it lies in the view's pyramid (widened by `view_margin`).
+    pub fn polygon_image(&self, corners: &[DVec3]) -> Option<PolygonImage> {
+        let eye = self.position.as_dvec3();
+        self.hull_image(corners.iter().map(|&p| self.camera_space(p - eye)).collect())
+    }
+
+    /// Camera space in pixel units: column x/z + w/2, row h/2 − y/z, z the depth.
+    fn camera_space(&self, v: DVec3) -> DVec3 {
         let (cx, cy, fz) = (self.column_axis.as_dvec3(), self.row_axis.as_dvec3(), self.forward.as_dvec3());
-        let mut hull: Vec<DVec3> = triangle
-            .iter()
-            .map(|&p| {
-                let v = (p - self.position).as_dvec3();
-                DVec3::new(v.dot(cx), v.dot(cy), v.dot(fz))
-            })
-            .collect();
+        DVec3::new(v.dot(cx), v.dot(cy), v.dot(fz))
+    }
+
+    /// Pixels per unit of the unit-distance image plane.
+    pub fn pixels_per_unit(&self) -> f64 {
+        0.5 * self.width as f64 / self.half_w as f64
+    }
+
+    /// Columns and rows of margin around a polygon's image: a pixel, plus what a ray direction's
+    /// f32 rounding (< 10⁻⁶ rad, up to (1 + tan²) image-plane units a radian off axis) spans in
+    /// pixels: with a field of view of hundredths of a degree that is more than a pixel.
+    pub fn view_margin(&self) -> [f64; 2] {
+        let margin = |half: f32, n: usize| {
+            let half = half as f64;
+            1.0 + (1e-6 * (1.0 + 2.0 * half * half) * n as f64 / (2.0 * half)).ceil()
+        };
+        [margin(self.half_w, self.width), margin(self.half_h, self.height)]
+    }
+
+    fn hull_image(&self, mut hull: Vec<DVec3>) -> Option<PolygonImage> {
+        if hull.is_empty() {
+            return None;
+        }
+        let (w, h) = (self.width as f64, self.height as f64);
+        let [mx, my] = self.view_margin();
         // The pyramid |x| ≤ a·z, |y| ≤ b·z (which holds only at z ≥ 0), one plane at a time
         // (Sutherland–Hodgman): inside where d(v) = ±v.x − a·v.z (or the same in y) ≤ 0.
         let (a, b) = (0.5 * w + mx + 1.0, 0.5 * h + my + 1.0);
@@ -166,28 +217,16 @@ impl CameraModel {
         // margin, so it may be seen in any pixel.
         let (near, far) = hull.iter().fold((f64::INFINITY, 0f64), |(n, f), v| (n.min(v.z), f.max(v.z)));
         if !(near >= 1e-4 * far) {
-            return Some(([0, self.width - 1], [0, self.height - 1]));
+            return Some(PolygonImage::Anywhere);
         }
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for v in &hull {
-            // Only a triangle collapsed onto the eye gets here with z = 0 (inside the pyramid
-            // |x| ≤ a·z): it has no image.
-            if !(v.z > 0.0) {
-                continue;
-            }
-            let (col, row) = (v.x / v.z + 0.5 * w, 0.5 * h - v.y / v.z);
-            lo = [lo[0].min(col), lo[1].min(row)];
-            hi = [hi[0].max(col), hi[1].max(row)];
-        }
-        let span = |lo: f64, hi: f64, n: usize, margin: f64| {
-            let first = (lo.floor() - margin).max(0.0) as usize;
-            let last = ((hi.floor() + margin).max(0.0) as usize).min(n - 1);
-            [first.min(n - 1), last]
-        };
-        if !(hi[0] >= -mx && lo[0] <= w + mx && hi[1] >= -my && lo[1] <= h + my) {
+        // Only a polygon collapsed onto the eye has corners at z = 0 inside the pyramid
+        // |x| ≤ a·z: it has no image.
+        let corners: Vec<[f64; 2]> =
+            hull.iter().filter(|v| v.z > 0.0).map(|v| [v.x / v.z + 0.5 * w, 0.5 * h - v.y / v.z]).collect();
+        if corners.is_empty() {
             return None;
         }
-        Some((span(lo[0], hi[0], self.width, mx), span(lo[1], hi[1], self.height, my)))
+        Some(PolygonImage::Corners(corners, near))
     }
 
     /// Unit direction through the point (u, v) ∈ [0,1)² of pixel `pixel`: a uniform point on the

@@ -5,5 +5,6 @@
 
 pub mod batch;
 pub mod camera;
+pub mod clear_view;
 pub mod emitter_view;
 pub mod particle;

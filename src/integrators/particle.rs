@@ -11,6 +11,7 @@ use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
+use crate::integrators::clear_view::ClearView;
 use crate::integrators::emitter_view::EmitterView;
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
@@ -82,6 +83,9 @@ pub struct Kernel<'a> {
     /// The emitters the light tracer images from the camera (`EmitterView`), if any: their
     /// emission splats are skipped.
     pub view: Option<&'a EmitterView>,
+    /// Which surface points in view the camera sees unblocked, so their splats need no shadow
+    /// ray (`ClearView`), if built.
+    pub clear: Option<&'a ClearView>,
     /// Whether batches also trace the view's camera samples (the estimator pilot leaves them
     /// out: they are the same under either estimator, and in the film's absolute units).
     pub view_samples: bool,
@@ -346,7 +350,7 @@ impl Kernel<'_> {
                 let value = |w| colour * self.emitter.direction_pdf(birth.light, birth.axis, w);
                 let start = RayEnd { p: birth.point, err: birth.point_err, n: birth.normal, prim: birth.prim };
                 let m = || self.emitter.medium_at(birth.light, birth.prim);
-                splat_seen(cam, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
+                splat_seen(cam, self.clear, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
             }
             let mut origin = birth.origin;
             // How far the ray's origin lies ahead of the surface point it left, along the ray:
@@ -660,7 +664,7 @@ impl Kernel<'_> {
                                 medium
                             }
                         };
-                        splat_seen(cam, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
+                        splat_seen(cam, self.clear, geo, film, start, through, m, |m| mu_t_at(m, lambda), value);
                     }
                 }
 
@@ -904,6 +908,7 @@ struct Through<'a> {
 #[allow(clippy::too_many_arguments)]
 fn splat_seen(
     cam: &CameraModel,
+    clear: Option<&ClearView>,
     geo: &Geometry,
     film: &mut FilmBatch,
     start: RayEnd,
@@ -914,7 +919,7 @@ fn splat_seen(
 ) {
     match through {
         Some(t) => splat_through(cam, geo, film, start, medium(), mu_t, t.passable, (t.inside, t.outside), value),
-        None => splat(cam, geo, film, start, value),
+        None => splat(cam, clear, geo, film, start, value),
     }
 }
 
@@ -1026,16 +1031,24 @@ fn collision_point(geo: &Geometry, h: &crate::geometry::Hit, dir: Vec3A, gap: f6
 /// Connects a photon vertex at `p` (error bound `err`, normal `n`, zero for a point light) to the
 /// camera and adds `value(ω)·importance` to its pixel when nothing is in between. `value(ω)` is
 /// the XYZ-weighted emission pdf or BSDF·|cos| toward the camera (see `film` for the estimator).
+/// Where the camera's clear view vouches for the point no ray is cast; `shadow_rays` counts the
+/// connections tested either way.
 #[inline]
-#[allow(clippy::too_many_arguments)]
-fn splat(cam: &CameraModel, geo: &Geometry, film: &mut FilmBatch, start: RayEnd, value: impl Fn(Vec3A) -> Vec3A) {
+fn splat(
+    cam: &CameraModel,
+    clear: Option<&ClearView>,
+    geo: &Geometry,
+    film: &mut FilmBatch,
+    start: RayEnd,
+    value: impl Fn(Vec3A) -> Vec3A,
+) {
     let Some(proj) = cam.project(start.p) else { return };
     let v = value(proj.to_camera);
     if v == Vec3A::ZERO || !v.is_finite() {
         return;
     }
     film.shadow_rays += 1;
-    if geo.visible(start, RayEnd::free(cam.position)) {
+    if clear.is_some_and(|c| c.is_clear(proj.pixel, start.prim)) || geo.visible(start, RayEnd::free(cam.position)) {
         film.add(proj.pixel, v * proj.importance);
     }
 }

@@ -10,6 +10,7 @@ use crate::detectors::film::{CameraModel, Film};
 use crate::detectors::tally::Tallies;
 use crate::error::Error;
 use crate::integrators::camera::{ImageKernel, Integrator};
+use crate::integrators::clear_view::ClearView;
 use crate::integrators::emitter_view::EmitterView;
 use crate::integrators::particle::{Estimator, Kernel, TransportOptions};
 use crate::lights::Emitter;
@@ -328,6 +329,7 @@ pub fn simulate_controlled(
     };
     let light_camera = camera.as_ref().filter(|_| integrator == Integrator::Light);
     let view = light_camera.and_then(|c| EmitterView::new(scene, &emitter, c));
+    let clear = light_camera.and_then(|c| ClearView::new(&scene.geometry, c));
     // The pilot's time is part of the run's.
     let start = Instant::now();
     let (transport, pilot) = match opts.transport.estimator {
@@ -353,6 +355,7 @@ pub fn simulate_controlled(
         cancel: Some(&quit),
         prepared: &prepared,
         view: view.as_ref(),
+        clear: clear.as_ref(),
         view_samples: true,
     };
     let hero = kernel.uses_hero();
@@ -626,11 +629,22 @@ pub fn choose_estimator(
     // The light-traced image without the lamps a run images from the camera: their camera
     // samples do not depend on the estimator, and their splats' noise is not in a run's image.
     let view = camera.and_then(|c| EmitterView::new(scene, emitter, c));
+    let clear = camera.and_then(|c| ClearView::new(&scene.geometry, c));
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
-        let view = view.as_ref();
-        let kernel =
-            Kernel { scene, emitter, camera, image: None, options, cancel: None, prepared, view, view_samples: false };
+        let (view, clear) = (view.as_ref(), clear.as_ref());
+        let kernel = Kernel {
+            scene,
+            emitter,
+            camera,
+            image: None,
+            options,
+            cancel: None,
+            prepared,
+            view,
+            clear,
+            view_samples: false,
+        };
         let mut total = Tallies::for_scene(scene);
         let mut film = camera.map(|c| Film::new(c.width, c.height));
         let mut round = 0;

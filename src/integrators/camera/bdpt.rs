@@ -514,7 +514,9 @@ impl ImageKernel<'_> {
             }
             counters.shadow_rays += 1;
             let cam = self.camera.position;
-            self.geo().visible(qs.end(), RayEnd::free(cam)).then_some((c, light, Some(proj.pixel)))
+            let end = qs.end();
+            let clear = self.clear.as_ref().is_some_and(|v| v.is_clear(proj.pixel, end.prim));
+            (clear || self.geo().visible(end, RayEnd::free(cam))).then_some((c, light, Some(proj.pixel)))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {

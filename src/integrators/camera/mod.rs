@@ -27,6 +27,7 @@ use crate::bsdf::{Bsdf, Mode, Prepared, Sample};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd};
+use crate::integrators::clear_view::ClearView;
 use crate::lights::Emitter;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
@@ -157,6 +158,8 @@ pub struct ImageKernel<'a> {
     fluorescent: bool,
     /// Free flights weight the lanes by the one-sample MIS of `medium` (no lane is ever dropped).
     lane_mis: bool,
+    /// BDPT: the surface points the camera sees unblocked, whose t = 1 connections need no ray.
+    clear: Option<ClearView>,
 }
 
 /// A point light in the camera's view with nothing in between: no camera ray can hit it, so its
@@ -220,7 +223,9 @@ impl<'a> ImageKernel<'a> {
         let point_views = if integrator == Integrator::Path { point_views(scene, emitter, camera) } else { Vec::new() };
         let fluorescent = scene.effects.fluorescence;
         let lane_mis = !fluorescent && !dispersive.iter().any(|&d| d);
+        let clear = (integrator == Integrator::Bdpt).then(|| ClearView::new(&scene.geometry, camera)).flatten();
         ImageKernel {
+            clear,
             scene,
             emitter,
             camera,
