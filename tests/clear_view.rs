@@ -40,7 +40,7 @@ fn check(toml: &str, points: usize, seed: u64) -> (usize, usize, usize) {
         let start = RayEnd { p, err, n: geo.normal(prim), prim: prim as u32 };
         let seen = geo.visible(start, RayEnd::free(cam.position));
         visible += seen as usize;
-        if clear.is_clear(proj.pixel, prim as u32) {
+        if clear.is_clear(&proj, prim as u32) {
             vouched += 1;
             assert!(seen, "point {p:?} of triangle {prim} (pixel {}) is blocked but was vouched for", proj.pixel);
         }

@@ -61,6 +61,9 @@ pub enum PolygonImage {
 #[derive(Clone, Copy, Debug)]
 pub struct Projection {
     pub pixel: usize,
+    /// The pixel's row and column (pixel = row·width + column).
+    pub row: u32,
+    pub col: u32,
     /// Unit direction from the point toward the camera, and the distance.
     pub to_camera: Vec3A,
     pub distance: f32,
@@ -116,6 +119,8 @@ impl CameraModel {
         // 1/(d² A_pix cos³θ_c) with cosθ_c = z/d: d/(A_pix z³).
         Some(Projection {
             pixel: row * self.width + col,
+            row: row as u32,
+            col: col as u32,
             to_camera: -v * inv_d,
             distance,
             importance: distance * (inv_z * inv_z * inv_z) * self.inv_pixel_area,

@@ -22,7 +22,7 @@ use std::collections::HashMap;
 
 use glam::DVec3;
 
-use crate::detectors::film::{CameraModel, PolygonImage};
+use crate::detectors::film::{CameraModel, PolygonImage, Projection};
 use crate::geometry::{Geometry, SHADOW_MARGIN};
 
 /// Pixels on a tile's side.
@@ -33,7 +33,6 @@ pub const MAX_TRIANGLES: usize = 4096;
 const MAX_CANDIDATES: usize = 16;
 
 pub struct ClearView {
-    width: usize,
     tiles_wide: usize,
     /// Tile k's clear triangles are `prims[start[k]..start[k + 1]]`.
     start: Vec<u32>,
@@ -206,17 +205,16 @@ impl ClearView {
             }
         }
         start.push(prims.len() as u32);
-        Some(ClearView { width: cam.width, tiles_wide, start, prims })
+        Some(ClearView { tiles_wide, start, prims })
     }
 
-    /// Whether a point of triangle `prim` that projects into `pixel` is seen by the eye with
-    /// nothing in between (false: unknown, cast the ray).
-    #[inline]
-    pub fn is_clear(&self, pixel: usize, prim: u32) -> bool {
-        let (row, col) = (pixel / self.width, pixel % self.width);
-        let k = (row / TILE) * self.tiles_wide + col / TILE;
+    /// Whether a point of triangle `prim` with projection `proj` is seen by the eye with nothing
+    /// in between (false: unknown, cast the ray).
+    #[inline(always)]
+    pub fn is_clear(&self, proj: &Projection, prim: u32) -> bool {
+        let k = (proj.row as usize / TILE) * self.tiles_wide + proj.col as usize / TILE;
         match (self.start.get(k), self.start.get(k + 1)) {
-            (Some(&a), Some(&b)) => self.prims[a as usize..b as usize].contains(&prim),
+            (Some(&a), Some(&b)) => self.prims.get(a as usize..b as usize).is_some_and(|p| p.contains(&prim)),
             _ => false,
         }
     }

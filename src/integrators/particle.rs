@@ -1048,7 +1048,7 @@ fn splat(
         return;
     }
     film.shadow_rays += 1;
-    if clear.is_some_and(|c| c.is_clear(proj.pixel, start.prim)) || geo.visible(start, RayEnd::free(cam.position)) {
+    if clear.is_some_and(|c| c.is_clear(&proj, start.prim)) || geo.visible(start, RayEnd::free(cam.position)) {
         film.add(proj.pixel, v * proj.importance);
     }
 }

@@ -515,7 +515,7 @@ impl ImageKernel<'_> {
             counters.shadow_rays += 1;
             let cam = self.camera.position;
             let end = qs.end();
-            let clear = self.clear.as_ref().is_some_and(|v| v.is_clear(proj.pixel, end.prim));
+            let clear = self.clear.as_ref().is_some_and(|v| v.is_clear(&proj, end.prim));
             (clear || self.geo().visible(end, RayEnd::free(cam))).then_some((c, light, Some(proj.pixel)))
         } else {
             let pt = &cv[t - 1];
