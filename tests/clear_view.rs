@@ -3,7 +3,7 @@
 //! for points the ray itself finds unblocked, or light would pass through walls in the image:
 //! checked here point by point against `Geometry::visible` on every bundled scene with a camera
 //! and on cases built to break it (the eye inside a closed room with walls behind it, a plate
-//! just in front of the eye, an eye almost in a wall's plane, a plate touching another), with
+//! just in front of the eye, an eye almost in a wall's plane, a plate 1 cm before the eye), with
 //! points drawn uniformly and near triangle edges, where silhouettes lie. It must also vouch for
 //! most visible points of the Cornell box, or it saves nothing.
 
@@ -15,13 +15,13 @@ use photon::geometry::{Hit, RayEnd};
 use photon::integrators::clear_view::ClearView;
 use photon::sampling::{uniform_triangle, Sampler};
 
-/// (points in view, of them visible by the ray, of them vouched for by the clear view); panics
-/// on any point vouched for that the ray finds blocked.
-fn check(toml: &str, points: usize, seed: u64) -> (usize, usize, usize) {
+/// (points in view, of them visible by the ray, of them vouched for by the clear view), or None
+/// where no clear view is built; panics on any point vouched for that the ray finds blocked.
+fn check(toml: &str, points: usize, seed: u64) -> Option<(usize, usize, usize)> {
     let s = scene(toml);
     let cam = CameraModel::new(s.camera.as_ref().expect("the scene has a camera"));
     let geo = &s.geometry;
-    let clear = ClearView::new(geo, &cam).expect("a clear view for a small scene");
+    let clear = ClearView::new(geo, &cam)?;
     let mut rng = Sampler::for_batch(seed, 0);
     let (mut in_view, mut visible, mut vouched) = (0, 0, 0);
     for k in 0..points {
@@ -45,17 +45,17 @@ fn check(toml: &str, points: usize, seed: u64) -> (usize, usize, usize) {
             assert!(seen, "point {p:?} of triangle {prim} (pixel {}) is blocked but was vouched for", proj.pixel);
         }
     }
-    (in_view, visible, vouched)
+    Some((in_view, visible, vouched))
 }
 
 #[test]
 fn the_clear_view_vouches_only_for_points_the_ray_sees_in_the_bundled_scenes() {
     // glass.toml's 20 496 triangles are past the clear view's limit: it keeps every ray there.
     let glass = scene(&bundled_toml("glass.toml"));
-    assert!(glass.geometry.len() > photon::integrators::clear_view::MAX_TRIANGLES);
+    assert!(glass.geometry.len() > photon::integrators::clear_view::MAX_SCENE_TRIANGLES);
     assert!(ClearView::new(&glass.geometry, &CameraModel::new(glass.camera.as_ref().unwrap())).is_none());
     for name in ["cornell_box.toml", "cornell_metals.toml", "cornell_glossy.toml", "led_phosphor.toml"] {
-        let (in_view, visible, vouched) = check(&bundled_toml(name), 400_000, 7);
+        let (in_view, visible, vouched) = check(&bundled_toml(name), 400_000, 7).expect("a clear view");
         println!("{name}: {in_view} points in view, {visible} visible, {vouched} vouched for");
         assert!(in_view > 10_000 && visible > 1000, "{name}: {in_view} in view, {visible} visible");
         if name == "cornell_box.toml" {
@@ -86,7 +86,7 @@ fn the_clear_view_vouches_only_for_points_the_ray_sees_in_hard_cases() {
         ("inside the office", office_with_camera([0.3, 0.2, 1.6], [3.5, 2.8, 0.8])),
         ("looking along the floor", office_with_camera([2.0, 0.05, 0.0005], [2.0, 3.0, 0.0004])),
         ("almost in the back wall's plane", office_with_camera([3.9999, 0.01, 1.35], [3.9999, 3.0, 1.3])),
-        // A small plate 1 cm before the eye, and one touching the desk's top edge-on.
+        // A small plate 1 cm before the eye.
         (
             "a plate before the eye",
             office_with_camera([2.0, 0.5, 1.2], [2.0, 3.0, 0.9])
@@ -96,8 +96,18 @@ fn the_clear_view_vouches_only_for_points_the_ray_sees_in_hard_cases() {
     for (what, toml) in cases {
         let s = scene(&toml);
         assert!(s.geometry.len() < 200, "{what}: {} triangles", s.geometry.len());
-        let (in_view, visible, vouched) = check(&toml, 300_000, 11);
+        // With the eye 0.5 mm over the floor the ray's rounding, seen from the floor's nearest
+        // point in view, spans more than a pixel: no clear view is built.
+        let Some((in_view, visible, vouched)) = check(&toml, 300_000, 11) else {
+            assert_eq!(what, "looking along the floor", "{what}: no clear view");
+            continue;
+        };
         println!("{what}: {in_view} points in view, {visible} visible, {vouched} vouched for");
         assert!(in_view > 1000, "{what}: {in_view} in view");
+        // It must vouch for some points where it can (not merely for none): all but the eye
+        // 10⁻⁴ from a wall, whose plane passes so near the eye that it may block anywhere.
+        if what != "almost in the back wall's plane" {
+            assert!(vouched > visible / 10, "{what}: {vouched} of {visible} vouched for");
+        }
     }
 }

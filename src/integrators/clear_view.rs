@@ -12,11 +12,13 @@
 //! (10⁻⁶ of the scene's extent plus the farthest distance), can block; that leaves out coplanar
 //! neighbours and those meeting T at a convex edge. Each image is compared with the tile widened
 //! by the camera's margin for direction rounding (`view_margin`) and by the ray's offset and
-//! rounding seen from the nearest depth in view, so the answer is the ray's. A triangle almost
+//! rounding seen from the nearest depth in view (a blocker's part nearer than that may be
+//! anywhere), so it agrees with the ray up to the rounding bounds argued here. T's plane is
+//! taken in f64 from its vertices. A triangle almost
 //! edge-on to the eye (|height of the eye over its plane| ≤ 10⁻³ of its distance) is never clear.
 //!
-//! Built for scenes of up to `MAX_TRIANGLES` triangles (a room, the Cornell box); a tile that more
-//! than `MAX_CANDIDATES` triangles' image boxes meet keeps the ray.
+//! Built for scenes of up to `MAX_SCENE_TRIANGLES` triangles (a room, the Cornell box); a tile that more
+//! than `MAX_CANDIDATES` triangles' images meet keeps the ray.
 
 use std::collections::HashMap;
 
@@ -28,8 +30,8 @@ use crate::geometry::{Geometry, SHADOW_MARGIN};
 /// Pixels on a tile's side.
 const TILE: usize = 4;
 /// Scenes with more triangles keep every ray (the build compares triangles pairwise per tile).
-pub const MAX_TRIANGLES: usize = 4096;
-/// Tiles that more image boxes than this meet keep every ray.
+pub const MAX_SCENE_TRIANGLES: usize = 4096;
+/// Tiles that more triangles' images than this meet keep every ray.
 const MAX_CANDIDATES: usize = 16;
 
 pub struct ClearView {
@@ -89,10 +91,11 @@ fn clip_to_side(tri: &[DVec3; 3], o: DVec3, n: DVec3, side: f64, floor: f64) -> 
 }
 
 impl ClearView {
-    /// None for a scene with no triangles or more than `MAX_TRIANGLES`.
+    /// None for a scene with no triangles or more than `MAX_SCENE_TRIANGLES`, or whose nearest
+    /// geometry in view is so close to the eye that the ray's rounding spans a pixel.
     pub fn new(geo: &Geometry, cam: &CameraModel) -> Option<ClearView> {
         let n = geo.len();
-        if n == 0 || n > MAX_TRIANGLES {
+        if n == 0 || n > MAX_SCENE_TRIANGLES {
             return None;
         }
         let eye = cam.position.as_dvec3();
@@ -112,7 +115,9 @@ impl ClearView {
             _ => m,
         });
         let spread = cam.pixels_per_unit() * 4e-6 * (extent + far) / near;
-        if !(spread < (cam.width.max(cam.height)) as f64) {
+        // Below a pixel, so the view pyramid's own widening (`view_margin` + 1 pixel) also holds
+        // every blocker the rounded ray can meet.
+        if !(spread < 1.0) {
             return None;
         }
         let [mx, my] = cam.view_margin();
@@ -165,7 +170,10 @@ impl ClearView {
         // neighbours and those meeting T at a convex edge.
         let planes: Vec<(DVec3, DVec3, f64, f64)> = (0..n)
             .map(|p| {
-                let (o, normal) = (tris[p][0], geo.normal(p).as_dvec3());
+                // In f64 from the vertices: f32's normal of a sliver tilts by ~ε·length/width,
+                // which would put T's own points off the plane by more than δ.
+                let [a, b, c] = tris[p];
+                let (o, normal) = (a, (b - a).cross(c - a).normalize());
                 let height = (eye - o).dot(normal);
                 let distance = tris[p].iter().fold(0f64, |m, v| m.max((*v - eye).length()));
                 let side = if height.abs() > 1e-3 * distance { height.signum() } else { 0.0 };
@@ -194,7 +202,12 @@ impl ClearView {
                             .entry((t, u))
                             .or_insert_with(|| {
                                 let (o, normal, side, floor) = planes[t as usize];
-                                cam.polygon_image(&clip_to_side(&tris[u as usize], o, normal, side, floor))
+                                // A part nearer the eye than every whole image: `spread` does not
+                                // cover its rounding, so it may be anywhere.
+                                match cam.polygon_image(&clip_to_side(&tris[u as usize], o, normal, side, floor)) {
+                                    Some(PolygonImage::Corners(_, z)) if !(z >= near) => Some(PolygonImage::Anywhere),
+                                    image => image,
+                                }
                             })
                             .as_ref()
                             .is_some_and(|image| meets(image, &rect))
