@@ -55,6 +55,23 @@ impl RayEnd {
     }
 }
 
+/// The stretch `Geometry::visible` tests between `a` and `b`: (origin, unit direction, length),
+/// each end offset off its own surface and the segment trimmed by `SHADOW_MARGIN` of its length
+/// at both ends alike, so that a → b and b → a test the same stretch. None if it is empty.
+#[inline]
+pub fn shadow_segment(a: RayEnd, b: RayEnd) -> Option<(Vec3A, Vec3A, f32)> {
+    let dir = (b.p - a.p).normalize();
+    let from = a.offset_toward(dir);
+    let to = b.offset_toward(-dir);
+    let seg = to - from;
+    let len = seg.length();
+    if !(len > 0.0) {
+        return None;
+    }
+    let dir = seg / len;
+    Some((from + dir * (len * SHADOW_MARGIN), dir, len * (1.0 - 2.0 * SHADOW_MARGIN)))
+}
+
 /// A closest hit: distance along the (unit) ray, primitive, barycentrics of the vertices.
 /// `repr(C)`: `intersect_avx2` writes the first 16 bytes with one store.
 #[derive(Clone, Copy, Debug)]
@@ -427,17 +444,10 @@ impl Geometry {
     /// Without this, 1 in 1000 lamp-to-block connections in the Cornell box came out occluded one
     /// way and visible the other.
     pub fn visible(&self, a: RayEnd, b: RayEnd) -> bool {
-        let dir = (b.p - a.p).normalize();
-        let from = a.offset_toward(dir);
-        let to = b.offset_toward(-dir);
-        let seg = to - from;
-        let len = seg.length();
-        if !(len > 0.0) {
-            return false;
+        match shadow_segment(a, b) {
+            Some((origin, dir, len)) => self.unoccluded(origin, dir, len, [a.prim, b.prim]),
+            None => false,
         }
-        // Trimmed at both ends alike, so that a → b and b → a test the same stretch.
-        let dir = seg / len;
-        self.unoccluded(from + dir * (len * SHADOW_MARGIN), dir, len * (1.0 - 2.0 * SHADOW_MARGIN), [a.prim, b.prim])
     }
 
     /// Origin of a ray leaving primitive `prim` at `p` (error bound `err`) along `dir`. A hit

@@ -35,7 +35,7 @@ use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::batch::{cancelled, BATCH_PHOTONS};
-use crate::integrators::particle::is_passable;
+use crate::integrators::passage::is_passable;
 use crate::lights::Emitter;
 use crate::sampling::owen_sobol_2d;
 use crate::scene::{LightShape, Scene};

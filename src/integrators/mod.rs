@@ -8,3 +8,4 @@ pub mod camera;
 pub mod clear_view;
 pub mod emitter_view;
 pub mod particle;
+pub mod passage;

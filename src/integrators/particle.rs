@@ -13,6 +13,7 @@ use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::clear_view::ClearView;
 use crate::integrators::emitter_view::EmitterView;
+use crate::integrators::passage::{is_passable, Through};
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
 use crate::sampling::Sampler;
@@ -293,11 +294,9 @@ impl Kernel<'_> {
         let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
         // With such boundaries in the scene, splats look through them (`splat_through`).
         let see_through = DIELECTRIC && passable.iter().any(|&p| p);
-        let through = see_through.then_some(Through {
-            passable: &passable,
-            inside: &scene.surface_inside,
-            outside: &scene.surface_outside,
-        });
+        let all_boundaries =
+            Through { passable: &passable, inside: &scene.surface_inside, outside: &scene.surface_outside };
+        let through = see_through.then_some(all_boundaries);
         let mu_t_at = |m: Option<u32>, lambda: f64| -> f64 {
             let Some(m) = m else { return 0.0 };
             match surface_medium[m as usize] {
@@ -450,8 +449,7 @@ impl Kernel<'_> {
                                                 RayEnd::free(at),
                                                 medium,
                                                 |m| mu_t_at(m, lambda),
-                                                &passable,
-                                                (&scene.surface_inside, &scene.surface_outside),
+                                                &all_boundaries,
                                                 value,
                                             );
                                         }
@@ -501,8 +499,7 @@ impl Kernel<'_> {
                                         RayEnd::free(at),
                                         medium,
                                         |m| mu_t_at(m, lambda),
-                                        &passable,
-                                        (&scene.surface_inside, &scene.surface_outside),
+                                        &all_boundaries,
                                         value,
                                     );
                                 }
@@ -893,15 +890,6 @@ impl Hero {
     }
 }
 
-/// What a connection to the camera may pass: the index-matched boundaries and the media on
-/// their sides (`splat_through`).
-#[derive(Clone, Copy)]
-struct Through<'a> {
-    passable: &'a [bool],
-    inside: &'a [u32],
-    outside: &'a [Option<u32>],
-}
-
 /// A surface or emission splat: through index-matched boundaries (`splat_through`, starting in
 /// the medium `medium()`) where the scene has any, else by a plain visibility test (`splat`).
 #[inline]
@@ -918,27 +906,16 @@ fn splat_seen(
     value: impl Fn(Vec3A) -> Vec3A,
 ) {
     match through {
-        Some(t) => splat_through(cam, geo, film, start, medium(), mu_t, t.passable, (t.inside, t.outside), value),
+        Some(t) => splat_through(cam, geo, film, start, medium(), mu_t, &t, value),
         None => splat(cam, clear, geo, film, start, value),
-    }
-}
-
-/// An index-matched smooth dielectric boundary: a connection to the camera passes it (nothing
-/// reflects or bends there).
-pub fn is_passable(m: &Material) -> bool {
-    match m {
-        Material::Dielectric { ior, outside_ior, roughness, scatter: None, .. } => {
-            !roughness.is_rough() && ior == outside_ior
-        }
-        _ => false,
     }
 }
 
 /// Connects `start` (a free point in a medium, or a surface point) to the camera and adds
 /// `value(ω)·T·importance` to its pixel, T = exp(−∫μt) along the way, `medium` being the
-/// dielectric the way starts in: the connection passes index-matched smooth boundaries
-/// (`passable`: nothing reflects or bends there), changing medium there, and anything else
-/// blocks it. `mu_t(m)`: the extinction per metre inside dielectric m (0 outside all).
+/// dielectric the way starts in: the connection passes index-matched boundaries (`passage`),
+/// changing medium there, and anything else blocks it. `mu_t(m)`: the extinction per metre
+/// inside dielectric m (0 outside all).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 fn splat_through(
@@ -948,12 +925,9 @@ fn splat_through(
     start: RayEnd,
     medium: Option<u32>,
     mu_t: impl Fn(Option<u32>) -> f64,
-    passable: &[bool],
-    (inside, outside): (&[u32], &[Option<u32>]),
+    through: &Through,
     value: impl Fn(Vec3A) -> Vec3A,
 ) {
-    // More boundaries than this between a point and the camera: treated as blocked.
-    const MAX_CROSSINGS: usize = 64;
     let Some(proj) = cam.project(start.p) else { return };
     let v = value(proj.to_camera);
     if v == Vec3A::ZERO || !v.is_finite() {
@@ -961,26 +935,11 @@ fn splat_through(
     }
     film.shadow_rays += 1;
     let w = proj.to_camera;
-    let mut origin = if start.prim == NO_PRIM { start.p } else { geo.spawn(start.p, start.err, start.prim, w) };
-    let (mut remaining, mut skip, mut m) = ((cam.position - origin).length(), start.prim, medium);
+    let origin = if start.prim == NO_PRIM { start.p } else { geo.spawn(start.p, start.err, start.prim, w) };
     let mut optical_depth = 0.0f64;
-    for _ in 0..MAX_CROSSINGS {
-        let Some(h) = geo.intersect(origin, w, remaining, skip) else {
-            optical_depth += mu_t(m) * remaining as f64;
-            film.add(proj.pixel, v * ((-optical_depth).exp() as f32 * proj.importance));
-            return;
-        };
-        let surface = geo.surface_of(h.prim as usize);
-        if !passable[surface as usize] {
-            return;
-        }
-        optical_depth += mu_t(m) * h.t as f64;
-        let n = geo.normal(h.prim as usize);
-        m = media::after_crossing(surface, n, w, inside, outside);
-        let (hp, err) = geo.hit_point(&h);
-        origin = geo.spawn(hp, err, h.prim, w);
-        remaining = (cam.position - origin).length();
-        skip = h.prim;
+    let stretch = |m: Option<u32>, len: f32| optical_depth += mu_t(m) * len as f64;
+    if through.walk(geo, origin, w, cam.position, (start.prim, NO_PRIM), medium, stretch) {
+        film.add(proj.pixel, v * ((-optical_depth).exp() as f32 * proj.importance));
     }
 }
 

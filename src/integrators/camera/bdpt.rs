@@ -12,8 +12,11 @@
 //! pbrt's ratio walk over each vertex's area densities: pdf_fwd as its own subpath sampled it, and
 //! pdf_rev as the opposite subpath would have. Delta vertices (mirror, glass, a collimated light's
 //! direction, a point light's position) cannot be connected, and strategies needing that are left
-//! out of the sum. Roulette probabilities are left out of the densities: any weights that sum to
-//! one over the strategies keep the estimate unbiased.
+//! out of the sum. Index-matched boundaries make no vertex: subpaths and connections pass them
+//! straight (`passage`), so each vertex's densities are measured from the last real one and a
+//! medium behind such a boundary is reached by every strategy. Roulette probabilities are left
+//! out of the densities: any weights that sum to one over the strategies keep the estimate
+//! unbiased.
 
 use glam::Vec3A;
 
@@ -23,6 +26,7 @@ use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::film::FilmBatch;
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
+use crate::integrators::passage;
 use crate::media;
 use crate::media::fluorescence;
 use crate::sampling::Sampler;
@@ -301,6 +305,8 @@ impl ImageKernel<'_> {
     ) {
         let geo = self.geo();
         let mut lane_pdf = Lanes::ONE;
+        // Passable boundaries crossed since the last vertex (`passage`).
+        let mut crossings = 0;
         while path.len() < max_len {
             counters.rays += 1;
             let next = geo.intersect(origin, dir, f32::INFINITY, skip);
@@ -340,12 +346,27 @@ impl ImageKernel<'_> {
                     origin = x;
                     dir = new_dir;
                     skip = NO_PRIM;
+                    crossings = 0;
                     continue;
                 }
             }
             let Some(hit) = next else { break };
             let Arrival { surface, material, n, is_dielectric } = self.arrive::<DIELECTRIC>(&hit);
             let (p, err) = geo.hit_point(&hit);
+            if DIELECTRIC && self.passable[surface as usize] {
+                // An index-matched boundary: straight on into the medium beyond, and no vertex, as
+                // connections pass it too; the next vertex's densities are measured from the last.
+                crossings += 1;
+                if crossings > passage::MAX_CROSSINGS {
+                    break;
+                }
+                medium =
+                    media::after_crossing(surface, n, dir, &self.scene.surface_inside, &self.scene.surface_outside);
+                origin = geo.spawn(p, err, hit.prim, dir);
+                skip = hit.prim;
+                continue;
+            }
+            crossings = 0;
             let index = path.len();
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
             v.surface = surface;
@@ -515,8 +536,21 @@ impl ImageKernel<'_> {
             counters.shadow_rays += 1;
             let cam = self.camera.position;
             let end = qs.end();
-            let clear = self.clear.as_ref().is_some_and(|v| v.is_clear(&proj, end.prim));
-            (clear || self.geo().visible(end, RayEnd::free(cam))).then_some((c, light, Some(proj.pixel)))
+            // Seen clear, the segment crosses nothing: it lies in the camera's medium (none).
+            if self.clear.as_ref().is_some_and(|v| v.is_clear(&proj, end.prim)) {
+                return Some((c, light, Some(proj.pixel)));
+            }
+            if let Some(through) = self.through() {
+                let medium = if qs.on_dielectric {
+                    media::after_crossing(qs.surface, qs.n, w, &self.scene.surface_inside, &self.scene.surface_outside)
+                } else {
+                    qs.medium
+                };
+                let at = Wavelengths { lambda: qs.lambda, ..*wl };
+                let t = self.transmittance_through::<SPECTRAL>(through, end, RayEnd::free(cam), medium, &at)?;
+                return Some((c * t, light, Some(proj.pixel)));
+            }
+            self.geo().visible(end, RayEnd::free(cam)).then_some((c, light, Some(proj.pixel)))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {
@@ -554,6 +588,15 @@ impl ImageKernel<'_> {
                 pt.medium
             };
             let at = Wavelengths { lambda: pt.lambda, ..*wl };
+            if let Some(through) = self.through() {
+                // Through index-matched boundaries, each stretch in its own medium.
+                if c.is_zero() {
+                    return None;
+                }
+                counters.shadow_rays += 1;
+                let t = self.transmittance_through::<SPECTRAL>(through, pt.end(), qs.end(), medium, &at)?;
+                return Some((c * t, light, None));
+            }
             if let Some(t) = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), &at)) {
                 c *= t;
             }

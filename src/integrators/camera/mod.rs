@@ -26,8 +26,9 @@ use glam::Vec3A;
 use crate::bsdf::{Bsdf, Mode, Prepared, Sample};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
-use crate::geometry::{Geometry, RayEnd};
+use crate::geometry::{shadow_segment, Geometry, RayEnd};
 use crate::integrators::clear_view::ClearView;
+use crate::integrators::passage::{is_passable, Through};
 use crate::lights::Emitter;
 use crate::sampling::Sampler;
 use crate::scene::{Material, Scene};
@@ -160,6 +161,11 @@ pub struct ImageKernel<'a> {
     lane_mis: bool,
     /// BDPT: the surface points the camera sees unblocked, whose t = 1 connections need no ray.
     clear: Option<ClearView>,
+    /// Per surface: an index-matched boundary (`passage`), which paths and connections go
+    /// straight through: no vertex is made there.
+    passable: Vec<bool>,
+    /// Some surface is passable.
+    see_through: bool,
 }
 
 /// A point light in the camera's view with nothing in between: no camera ray can hit it, so its
@@ -224,6 +230,8 @@ impl<'a> ImageKernel<'a> {
         let fluorescent = scene.effects.fluorescence;
         let lane_mis = !fluorescent && !dispersive.iter().any(|&d| d);
         let clear = (integrator == Integrator::Bdpt).then(|| ClearView::new(&scene.geometry, camera)).flatten();
+        let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
+        let see_through = passable.iter().any(|&p| p);
         ImageKernel {
             clear,
             scene,
@@ -238,7 +246,42 @@ impl<'a> ImageKernel<'a> {
             fluorescent,
             lane_mis,
             max_scatterings: scene.simulation.max_bounces as usize + 1,
+            passable,
+            see_through,
         }
+    }
+
+    /// The passable boundaries, if the scene has any (`passage`).
+    #[inline]
+    fn through(&self) -> Option<Through<'_>> {
+        self.see_through.then_some(Through {
+            passable: &self.passable,
+            inside: &self.scene.surface_inside,
+            outside: &self.scene.surface_outside,
+        })
+    }
+
+    /// Through the passable boundaries between `a` and `b` (the stretch `Geometry::visible`
+    /// tests), starting in dielectric `medium` on `a`'s side: the transmittance per lane at `wl`,
+    /// each stretch in its own medium, or None if anything else lies in between. The trimmed
+    /// ends (~2·10⁻⁵ of the length) are left out of the optical depth.
+    #[inline]
+    fn transmittance_through<const SPECTRAL: bool>(
+        &self,
+        through: Through,
+        a: RayEnd,
+        b: RayEnd,
+        medium: Option<u32>,
+        wl: &Wavelengths,
+    ) -> Option<Lanes> {
+        let (from, dir, len) = shadow_segment(a, b)?;
+        let mut t = Lanes::ONE;
+        let stretch = |m: Option<u32>, len: f32| {
+            if let Some(tm) = m.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, len as f64, wl)) {
+                t *= tm;
+            }
+        };
+        through.walk(self.geo(), from, dir, from + dir * len, (a.prim, b.prim), medium, stretch).then_some(t)
     }
 
     fn geo(&self) -> &Geometry {

@@ -4,9 +4,11 @@
 //! The two estimates of the same light are combined by multiple importance sampling with Veach's
 //! power heuristic, w_a = p_a²/(p_a² + p_b²) (Veach 1997, §9.2.4), both pdfs per solid angle.
 //! After the camera or a specular bounce (mirror, glass) only the hit counts: no light sample can
-//! pass a delta BSDF. Russian roulette on the albedo (see `scatter`) ends paths. A point light
-//! in view, which no camera ray can hit, is connected to the camera directly: its pixel's samples
-//! each carry its exact share, the light tracer's emission splat (`PointView`).
+//! pass a delta BSDF. An index-matched boundary is no bounce: paths and light samples pass it
+//! straight (`passage`), so a medium behind one is lit by light samples. Russian roulette on the
+//! albedo (see `scatter`) ends paths. A point light in view, which no camera ray can hit, is
+//! connected to the camera directly: its pixel's samples each carry its exact share, the light
+//! tracer's emission splat (`PointView`).
 
 use glam::Vec3A;
 
@@ -58,6 +60,8 @@ impl ImageKernel<'_> {
         }
         // Solid-angle pdf of the last diffuse bounce; None after the camera or a specular bounce.
         let mut bsdf_pdf: Option<f64> = None;
+        // Distance from that vertex to the ray's origin: the passable boundaries crossed since.
+        let mut travelled = 0.0f64;
         let mut medium: Option<u32> = None;
         let mut scatterings = 0usize;
         loop {
@@ -95,6 +99,7 @@ impl ImageKernel<'_> {
                     counters.phase_samples += 1;
                     let new_dir = media::phase::sample(event.phase(), dir, s.uniform(), s.uniform());
                     bsdf_pdf = Some(event.phase_pdf(-dir, new_dir));
+                    travelled = 0.0;
                     origin = x;
                     dir = new_dir;
                     skip = NO_PRIM;
@@ -113,7 +118,7 @@ impl ImageKernel<'_> {
                         Some(p_bsdf) => {
                             // Light sampling's density of the same direction: pick · (1/A) · t²/cosθ_l.
                             let cos_l = (-dir).dot(n) as f64;
-                            let t = hit.t as f64;
+                            let t = travelled + hit.t as f64;
                             let p_light =
                                 self.emitter.pick_pdf(light) * self.emitter.position_pdf(light) * t * t / cos_l;
                             power_heuristic(p_bsdf, p_light)
@@ -128,6 +133,17 @@ impl ImageKernel<'_> {
             scatterings += 1;
 
             let (p, err) = geo.hit_point(&hit);
+            if DIELECTRIC && self.passable[surface as usize] {
+                // An index-matched boundary: straight on into the medium beyond. Nothing scattered,
+                // so the last vertex's direction density stands, as light samples from it see
+                // through the boundary (`next_event`).
+                travelled += hit.t as f64;
+                medium =
+                    media::after_crossing(surface, n, dir, &self.scene.surface_inside, &self.scene.surface_outside);
+                origin = geo.spawn(p, err, hit.prim, dir);
+                skip = hit.prim;
+                continue;
+            }
             let tangent = || geo.tangent(hit.prim as usize);
             let ns = geo.shading_normal(hit.prim as usize, hit.b);
             let bsdf =
@@ -148,6 +164,7 @@ impl ImageKernel<'_> {
             }
             let Some(sampled) = scatter(&bsdf, -dir, Mode::Radiance, &mut beta, s) else { break };
             bsdf_pdf = (!sampled.lobe.is_delta()).then_some(sampled.pdf);
+            travelled = 0.0;
             let new_dir = sampled.wi;
             if is_dielectric {
                 medium =
@@ -214,18 +231,30 @@ impl ImageKernel<'_> {
             power_heuristic(p_light, pdf)
         };
         counters.shadow_rays += 1;
-        if !self.geo().visible(vertex, lp.end()) {
-            return;
-        }
-        let radiance_term = self.emitter.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda)
-            * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight / lane_pdf.mean());
-        // A visible light lies in the medium on `wi`'s side: the vertex's own, or beyond the
-        // dielectric boundary it sits on (`crossing`). Its transmittance over the shadow segment.
+        // The segment starts in the medium on `wi`'s side: the vertex's own, or beyond the
+        // dielectric boundary it sits on (`crossing`).
         let medium = crossing.map_or(medium, |surface| {
             media::after_crossing(surface, n, wi, &self.scene.surface_inside, &self.scene.surface_outside)
         });
-        let through = medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), wl));
-        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * through.unwrap_or(Lanes::ONE));
+        let transmittance = match self.through() {
+            // A visible light lies in that medium: its transmittance over the segment.
+            None => {
+                if !self.geo().visible(vertex, lp.end()) {
+                    return;
+                }
+                medium.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, d2.sqrt(), wl)).unwrap_or(Lanes::ONE)
+            }
+            // Through index-matched boundaries, each stretch in its own medium.
+            Some(through) => {
+                let Some(t) = self.transmittance_through::<SPECTRAL>(through, vertex, lp.end(), medium, wl) else {
+                    return;
+                };
+                t
+            }
+        };
+        let radiance_term = self.emitter.share_lanes::<SPECTRAL, LANES>(light, &wl.lambda)
+            * (self.emitter.power_w(light) * p_dir / (pick * d2) * cos_x * weight / lane_pdf.mean());
+        acc.add::<SPECTRAL>(self.emitter, wl, light, beta * f * radiance_term * transmittance);
     }
 }
 
