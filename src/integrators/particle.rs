@@ -13,7 +13,7 @@ use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::clear_view::ClearView;
 use crate::integrators::emitter_view::EmitterView;
-use crate::integrators::passage::{is_passable, Through};
+use crate::integrators::passage::{self, is_passable, Through};
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
 use crate::media;
 use crate::sampling::Sampler;
@@ -294,9 +294,9 @@ impl Kernel<'_> {
         let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
         // With such boundaries in the scene, splats look through them (`splat_through`).
         let see_through = DIELECTRIC && passable.iter().any(|&p| p);
-        let all_boundaries =
+        let boundaries =
             Through { passable: &passable, inside: &scene.surface_inside, outside: &scene.surface_outside };
-        let through = see_through.then_some(all_boundaries);
+        let through = see_through.then_some(boundaries);
         let mu_t_at = |m: Option<u32>, lambda: f64| -> f64 {
             let Some(m) = m else { return 0.0 };
             match surface_medium[m as usize] {
@@ -363,6 +363,8 @@ impl Kernel<'_> {
             let mut dir = birth.dir;
             let mut skip = birth.prim;
             let mut scatterings = 0u32;
+            // Index-matched boundaries passed since the last scattering.
+            let mut crossings = 0;
             // A light inside glass or water emits into it.
             let mut medium: Option<u32> =
                 if DIELECTRIC { self.emitter.medium_at(birth.light, birth.prim) } else { None };
@@ -424,6 +426,7 @@ impl Kernel<'_> {
                                     break 'collision false;
                                 }
                                 scatterings += 1;
+                                crossings = 0;
                                 origin = at;
                                 head_start = 0.0;
                                 skip = NO_PRIM;
@@ -449,7 +452,7 @@ impl Kernel<'_> {
                                                 RayEnd::free(at),
                                                 medium,
                                                 |m| mu_t_at(m, lambda),
-                                                &all_boundaries,
+                                                &boundaries,
                                                 value,
                                             );
                                         }
@@ -499,7 +502,7 @@ impl Kernel<'_> {
                                         RayEnd::free(at),
                                         medium,
                                         |m| mu_t_at(m, lambda),
-                                        &all_boundaries,
+                                        &boundaries,
                                         value,
                                     );
                                 }
@@ -709,11 +712,21 @@ impl Kernel<'_> {
                     let e = hb.event_terms(sampled.lobe, wo, new_dir, Mode::Importance);
                     hero.event::<EXPECTED>(|k| (e.factor.0[k], e.albedo.0[k], e.analog.0[k]));
                 }
-                if scatterings == max_bounces {
-                    out.truncated += weight;
-                    break;
+                if DIELECTRIC && passable[surface as usize] {
+                    // Through an index-matched boundary: no scattering event (`passage`).
+                    crossings += 1;
+                    if crossings > passage::MAX_CROSSINGS {
+                        out.truncated += weight;
+                        break;
+                    }
+                } else {
+                    if scatterings == max_bounces {
+                        out.truncated += weight;
+                        break;
+                    }
+                    scatterings += 1;
+                    crossings = 0;
                 }
-                scatterings += 1;
                 if is_dielectric {
                     medium = media::after_crossing(
                         surface,

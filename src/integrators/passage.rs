@@ -1,9 +1,10 @@
 //! Straight connections through index-matched boundaries. A smooth dielectric whose index equals
 //! the index outside it neither reflects nor bends (Fresnel's R = 0 at n₁ = n₂): a connection
 //! passes it, changing medium there, and is blocked only by other surfaces. The light tracer's
-//! camera splats and the path tracer's light samples walk such connections, so a medium behind a
-//! matched boundary (tissue, fog in a box) is reached by the estimators' connections and not only
-//! by paths that happen to pass it.
+//! camera splats, the path tracer's light samples and BDPT's connections walk such connections,
+//! and the camera integrators' paths make no vertex there, so a medium behind a matched boundary
+//! (tissue, fog in a box) is reached by the estimators' connections and not only by paths that
+//! happen to pass it. A crossing is no scattering event: it does not count toward `max_bounces`.
 
 use glam::Vec3A;
 
@@ -53,7 +54,7 @@ impl Through<'_> {
         mut stretch: impl FnMut(Option<u32>, f32),
     ) -> bool {
         let mut remaining = (target - origin).length();
-        for _ in 0..MAX_CROSSINGS {
+        for _ in 0..=MAX_CROSSINGS {
             let hit = geo.intersect(origin, dir, remaining, skip).filter(|h| end_prim == NO_PRIM || h.prim != end_prim);
             let Some(h) = hit else {
                 stretch(medium, remaining);
@@ -68,6 +69,11 @@ impl Through<'_> {
             medium = media::after_crossing(surface, n, dir, self.inside, self.outside);
             let (hp, err) = geo.hit_point(&h);
             origin = geo.spawn(hp, err, h.prim, dir);
+            if (target - origin).dot(dir) <= 0.0 {
+                // A boundary within the spawn offset of the target: the offset passed it.
+                stretch(medium, 0.0);
+                return true;
+            }
             remaining = (target - origin).length();
             skip = h.prim;
         }

@@ -230,7 +230,9 @@ impl<'a> ImageKernel<'a> {
         let fluorescent = scene.effects.fluorescence;
         let lane_mis = !fluorescent && !dispersive.iter().any(|&d| d);
         let clear = (integrator == Integrator::Bdpt).then(|| ClearView::new(&scene.geometry, camera)).flatten();
-        let passable: Vec<bool> = materials.iter().map(|m| is_passable(m)).collect();
+        // An emitting boundary stays a vertex: its emission is met there.
+        let passable: Vec<bool> =
+            materials.iter().zip(&scene.surfaces).map(|(m, s)| is_passable(m) && s.light.is_none()).collect();
         let see_through = passable.iter().any(|&p| p);
         ImageKernel {
             clear,
@@ -263,8 +265,7 @@ impl<'a> ImageKernel<'a> {
 
     /// Through the passable boundaries between `a` and `b` (the stretch `Geometry::visible`
     /// tests), starting in dielectric `medium` on `a`'s side: the transmittance per lane at `wl`,
-    /// each stretch in its own medium, or None if anything else lies in between. The trimmed
-    /// ends (~2·10⁻⁵ of the length) are left out of the optical depth.
+    /// each stretch in its own medium, or None if anything else lies in between.
     #[inline]
     fn transmittance_through<const SPECTRAL: bool>(
         &self,
@@ -276,12 +277,26 @@ impl<'a> ImageKernel<'a> {
     ) -> Option<Lanes> {
         let (from, dir, len) = shadow_segment(a, b)?;
         let mut t = Lanes::ONE;
-        let stretch = |m: Option<u32>, len: f32| {
-            if let Some(tm) = m.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, len as f64, wl)) {
+        let mut attenuate = |m: Option<u32>, len: f64| {
+            if let Some(tm) = m.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, len, wl)) {
                 t *= tm;
             }
         };
-        through.walk(self.geo(), from, dir, from + dir * len, (a.prim, b.prim), medium, stretch).then_some(t)
+        // The ends `shadow_segment` trims off (offsets, 10⁻⁵ of the length each) lie in the first
+        // and the last medium.
+        let head = (from - a.p).length();
+        let tail = ((b.p - a.p).length() - head - len).max(0.0);
+        attenuate(medium, head as f64);
+        let mut last = medium;
+        let stretch = |m: Option<u32>, len: f32| {
+            attenuate(m, len as f64);
+            last = m;
+        };
+        if !through.walk(self.geo(), from, dir, from + dir * len, (a.prim, b.prim), medium, stretch) {
+            return None;
+        }
+        attenuate(last, tail as f64);
+        Some(t)
     }
 
     fn geo(&self) -> &Geometry {

@@ -17,6 +17,7 @@ use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
+use crate::integrators::passage;
 use crate::media;
 use crate::sampling::Sampler;
 
@@ -60,8 +61,8 @@ impl ImageKernel<'_> {
         }
         // Solid-angle pdf of the last diffuse bounce; None after the camera or a specular bounce.
         let mut bsdf_pdf: Option<f64> = None;
-        // Distance from that vertex to the ray's origin: the passable boundaries crossed since.
-        let mut travelled = 0.0f64;
+        // Distance from that vertex to the ray's origin, and the passable boundaries crossed since.
+        let (mut travelled, mut crossings) = (0.0f64, 0);
         let mut medium: Option<u32> = None;
         let mut scatterings = 0usize;
         loop {
@@ -99,7 +100,7 @@ impl ImageKernel<'_> {
                     counters.phase_samples += 1;
                     let new_dir = media::phase::sample(event.phase(), dir, s.uniform(), s.uniform());
                     bsdf_pdf = Some(event.phase_pdf(-dir, new_dir));
-                    travelled = 0.0;
+                    (travelled, crossings) = (0.0, 0);
                     origin = x;
                     dir = new_dir;
                     skip = NO_PRIM;
@@ -127,16 +128,15 @@ impl ImageKernel<'_> {
                     acc.add::<SPECTRAL>(self.emitter, &wl, light, beta * le * (weight / lane_pdf.mean()));
                 }
             }
-            if scatterings == self.max_scatterings {
-                break;
-            }
-            scatterings += 1;
-
             let (p, err) = geo.hit_point(&hit);
             if DIELECTRIC && self.passable[surface as usize] {
-                // An index-matched boundary: straight on into the medium beyond. Nothing scattered,
-                // so the last vertex's direction density stands, as light samples from it see
-                // through the boundary (`next_event`).
+                // An index-matched boundary: straight on into the medium beyond. Nothing scattered
+                // (no bounce is counted), so the last vertex's direction density stands, as light
+                // samples from it see through the boundary (`next_event`).
+                crossings += 1;
+                if crossings > passage::MAX_CROSSINGS {
+                    break;
+                }
                 travelled += hit.t as f64;
                 medium =
                     media::after_crossing(surface, n, dir, &self.scene.surface_inside, &self.scene.surface_outside);
@@ -144,6 +144,12 @@ impl ImageKernel<'_> {
                 skip = hit.prim;
                 continue;
             }
+            crossings = 0;
+            if scatterings == self.max_scatterings {
+                break;
+            }
+            scatterings += 1;
+
             let tangent = || geo.tangent(hit.prim as usize);
             let ns = geo.shading_normal(hit.prim as usize, hit.b);
             let bsdf =
