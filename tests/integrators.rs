@@ -667,6 +667,45 @@ fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
     }
 }
 
+#[test]
+fn a_point_light_in_an_index_matched_absorbing_cube_reads_its_transmitted_radiance() {
+    // The grey point-light box, with the bulb inside a cube of absorbing "glass" (α = 2 /m) of
+    // the air's index: the camera sees the bulb through 0.2·|v|/|v_z| = 0.2021 m of it, so its
+    // pixel less the surround (the wall, seen through the cube alike) is the direct part times
+    // T = e^(−2·0.2021). Each integrator must reach the camera through the cube's face: the
+    // light tracer's emission splat, the path tracer's point view and BDPT's s = 1, t = 1
+    // connection. Bounds as in the test above.
+    let toml = point_light_box(false)
+        + "\n[materials.tinted]\ntype = \"dielectric\"\nior = 1.0\noutside_ior = 1.0\nabsorption_per_m = 2\n\n\
+           [[surfaces]]\nname = \"cube\"\nmaterial = \"tinted\"\n\
+           shape = { type = \"box\", min = [-0.3, -0.2, 0.0], max = [0.1, 0.3, 0.4] }\n";
+    let (cam, light) = ([0.0f64, 0.0, -0.8], [-0.12f64, 0.08, 0.2]);
+    let v = [light[0] - cam[0], light[1] - cam[1], light[2] - cam[2]];
+    let d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let cos_c = v[2] / d2.sqrt();
+    let half = (20.0f64).to_radians().tan();
+    let a_pix = (2.0 * half / 32.0).powi(2);
+    let (sx, sy) = (-v[0] / v[2] / half, v[1] / v[2] / half);
+    let (col, row) = (((sx + 1.0) * 16.0) as usize, ((1.0 - sy) * 16.0) as usize);
+    let pixel = row * 32 + col;
+    let range = scene(&toml).simulation.wavelength_range_nm;
+    let intensity = 100.0 / (4.0 * std::f64::consts::PI) / (range.1 - range.0);
+    let inside = 0.2 * d2.sqrt() / v[2];
+    let direct = intensity / (d2 * a_pix * cos_c.powi(3)) * (-2.0 * inside).exp();
+    let ring: Vec<usize> = (0..9).filter(|&k| k != 4).map(|k| (row + k / 3 - 1) * 32 + col + k % 3 - 1).collect();
+    for (k, i) in [Integrator::Light, Integrator::Path, Integrator::Bdpt].into_iter().enumerate() {
+        let (img, _, _) = render(&toml, i, 200_000, 31 + k as u64);
+        let (at, wall) = (region(&img, &[pixel]), region(&img, &ring));
+        let excess = at.0 - wall.0;
+        let bound = 4.0 * (at.1.powi(2) + wall.1.powi(2)).sqrt() + 1e-5 * direct;
+        println!("{i:?}: light pixel {at:?} less wall {wall:?} = {excess}, closed form {direct}");
+        assert!(
+            (excess - direct).abs() < bound,
+            "{i:?}: light pixel {at:?} less wall {wall:?} = {excess}, closed form {direct}"
+        );
+    }
+}
+
 /// The Cornell box with its tall block replaced by a box of `medium` (TOML of a `[media.m]`
 /// table's keys) behind a boundary of refractive index `ior` (the air's, 1, for a boundary
 /// that neither reflects nor bends), at `res`² pixels.

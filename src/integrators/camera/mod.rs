@@ -170,7 +170,7 @@ pub struct ImageKernel<'a> {
 
 /// A point light in the camera's view with nothing in between: no camera ray can hit it, so its
 /// pixel gets the light tracer's emission splat deterministically (`ImageKernel::point_views`).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct PointView {
     pixel: usize,
     /// The light's part of the pixel's value (mean radiance over its footprint, see `film`):
@@ -178,12 +178,26 @@ struct PointView {
     /// ∫S·(x̄,ȳ,z̄)/(∫S·∫ȳ). Nothing on the segment depends on λ, so this is exactly what the
     /// wavelength lanes would estimate, in spectral transport as in grey.
     xyz: Vec3A,
+    /// Seen through index-matched boundaries (`xyz` is then unused).
+    attenuated: Option<Attenuated>,
 }
 
-/// The point lights that project into the image with a clear line to the camera, once per run.
-/// Like the light tracer's emission splat: no medium attenuates the segment, since the camera is
-/// outside every dielectric and a visible segment crosses no surface.
-fn point_views(scene: &Scene, emitter: &Emitter, camera: &CameraModel) -> Vec<PointView> {
+/// A point light seen through index-matched boundaries, with media between.
+#[derive(Clone, Debug)]
+struct Attenuated {
+    light: usize,
+    /// Φ·p(ω)/(d² A_pix cos³θ_c), as `PointView::xyz` before the light's colour.
+    value: f64,
+    /// (medium, length) of each stretch in a medium: their transmittance depends on λ, so each
+    /// sample applies it at its own wavelengths.
+    stretches: Vec<(u32, f64)>,
+}
+
+/// The point lights that project into the image with a clear line to the camera, once per run:
+/// nothing in between, or only index-matched boundaries (`through`). Like the light tracer's
+/// emission splat: with nothing in between no medium attenuates the segment, since the camera is
+/// outside every dielectric.
+fn point_views(scene: &Scene, emitter: &Emitter, camera: &CameraModel, through: Option<Through>) -> Vec<PointView> {
     let geo = &scene.geometry;
     (0..emitter.light_count())
         .filter(|&l| emitter.is_point(l))
@@ -193,10 +207,51 @@ fn point_views(scene: &Scene, emitter: &Emitter, camera: &CameraModel) -> Vec<Po
             // Zero behind a directional lamp's lobe and for a collimated beam.
             let p_dir = emitter.direction_pdf(light, lp.axis, proj.to_camera) as f64;
             let value = emitter.power_w(light) * p_dir * proj.importance as f64;
-            (value > 0.0 && value.is_finite() && geo.visible(lp.end(), RayEnd::free(camera.position)))
-                .then(|| PointView { pixel: proj.pixel, xyz: emitter.grey_xyz(light) * value as f32 })
+            if !(value > 0.0 && value.is_finite()) {
+                return None;
+            }
+            let (end, cam) = (lp.end(), RayEnd::free(camera.position));
+            let xyz = emitter.grey_xyz(light) * value as f32;
+            if geo.visible(end, cam) {
+                return Some(PointView { pixel: proj.pixel, xyz, attenuated: None });
+            }
+            let mut stretches = Vec::new();
+            let medium = emitter.medium_at(light, lp.prim);
+            let seen = walk_stretches(geo, through?, end, cam, medium, |m, len| stretches.extend(m.map(|m| (m, len))));
+            let attenuated = Some(Attenuated { light, value, stretches });
+            seen.then_some(PointView { pixel: proj.pixel, xyz, attenuated })
         })
         .collect()
+}
+
+/// Walks the stretch `Geometry::visible` tests between `a` and `b` through passable boundaries
+/// (`Through::walk`), starting in dielectric `medium` on `a`'s side, reporting each stretch as
+/// `stretch(medium, length)` with the trimmed ends (offsets, 10⁻⁵ of the length each) added to
+/// the first and the last. False if anything else lies in between.
+#[inline]
+fn walk_stretches(
+    geo: &Geometry,
+    through: Through,
+    a: RayEnd,
+    b: RayEnd,
+    medium: Option<u32>,
+    mut stretch: impl FnMut(Option<u32>, f64),
+) -> bool {
+    let Some((from, dir, len)) = shadow_segment(a, b) else { return false };
+    let head = (from - a.p).length();
+    let tail = ((b.p - a.p).length() - head - len).max(0.0);
+    let mut first = true;
+    let mut last = medium;
+    let inner = |m: Option<u32>, len: f32| {
+        let len = if first { head + len } else { len };
+        stretch(m, len as f64);
+        (first, last) = (false, m);
+    };
+    if !through.walk(geo, from, dir, from + dir * len, (a.prim, b.prim), medium, inner) {
+        return false;
+    }
+    stretch(last, tail as f64);
+    true
 }
 
 /// A surface a camera or light subpath arrived at.
@@ -226,7 +281,6 @@ impl<'a> ImageKernel<'a> {
                 _ => false,
             })
             .collect();
-        let point_views = if integrator == Integrator::Path { point_views(scene, emitter, camera) } else { Vec::new() };
         let fluorescent = scene.effects.fluorescence;
         let lane_mis = !fluorescent && !dispersive.iter().any(|&d| d);
         let clear = (integrator == Integrator::Bdpt).then(|| ClearView::new(&scene.geometry, camera)).flatten();
@@ -234,6 +288,13 @@ impl<'a> ImageKernel<'a> {
         let passable: Vec<bool> =
             materials.iter().zip(&scene.surfaces).map(|(m, s)| is_passable(m) && s.light.is_none()).collect();
         let see_through = passable.iter().any(|&p| p);
+        let through = see_through.then_some(Through {
+            passable: &passable,
+            inside: &scene.surface_inside,
+            outside: &scene.surface_outside,
+        });
+        let point_views =
+            if integrator == Integrator::Path { point_views(scene, emitter, camera, through) } else { Vec::new() };
         ImageKernel {
             clear,
             scene,
@@ -275,28 +336,13 @@ impl<'a> ImageKernel<'a> {
         medium: Option<u32>,
         wl: &Wavelengths,
     ) -> Option<Lanes> {
-        let (from, dir, len) = shadow_segment(a, b)?;
         let mut t = Lanes::ONE;
-        let mut attenuate = |m: Option<u32>, len: f64| {
+        let attenuate = |m: Option<u32>, len: f64| {
             if let Some(tm) = m.and_then(|m| self.medium_transmittance::<SPECTRAL>(m, len, wl)) {
                 t *= tm;
             }
         };
-        // The ends `shadow_segment` trims off (offsets, 10⁻⁵ of the length each) lie in the first
-        // and the last medium.
-        let head = (from - a.p).length();
-        let tail = ((b.p - a.p).length() - head - len).max(0.0);
-        attenuate(medium, head as f64);
-        let mut last = medium;
-        let stretch = |m: Option<u32>, len: f32| {
-            attenuate(m, len as f64);
-            last = m;
-        };
-        if !through.walk(self.geo(), from, dir, from + dir * len, (a.prim, b.prim), medium, stretch) {
-            return None;
-        }
-        attenuate(last, tail as f64);
-        Some(t)
+        walk_stretches(self.geo(), through, a, b, medium, attenuate).then_some(t)
     }
 
     fn geo(&self) -> &Geometry {

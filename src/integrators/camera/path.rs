@@ -48,7 +48,18 @@ impl ImageKernel<'_> {
         // of its pixel its exact part I(ω)/(d² A_pix cos³θ_c) of the pixel's value, integrated
         // over λ. Without point lights in view the list is empty.
         for v in self.point_views.iter().filter(|v| v.pixel == pixel) {
-            acc.add_exact(v.xyz);
+            match &v.attenuated {
+                None => acc.add_exact(v.xyz),
+                Some(a) => {
+                    let mut t = self.emitter.share_lanes::<SPECTRAL, LANES>(a.light, &wl.lambda) * a.value;
+                    for &(m, len) in &a.stretches {
+                        if let Some(tm) = self.medium_transmittance::<SPECTRAL>(m, len, &wl) {
+                            t *= tm;
+                        }
+                    }
+                    acc.add::<SPECTRAL>(self.emitter, &wl, a.light, t);
+                }
+            }
         }
         let mut origin = self.camera.position;
         let mut dir = self.camera.ray_direction(pixel, s.uniform_f32(), s.uniform_f32());
