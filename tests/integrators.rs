@@ -609,13 +609,22 @@ spectrum = {spectrum}
     )
 }
 
-#[test]
-fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
-    // No camera ray can hit a point light, so the path tracer must connect the camera to it; the
-    // light tracer's emission splat and BDPT's s = 1, t = 1 strategy do the same. The light's
-    // pixel j then holds I/(d² A_pix cos³θ_c) (see `film`) on top of the wall behind it. Before
-    // the path tracer did this, its light pixel read the wall alone (0.0052 against 33.063).
-    // Closed form, independent of `CameraModel`: image-right is −x (looking along +z, y up).
+/// Where `point_light_box`'s bulb appears and what it adds there, in closed form, independent of
+/// `CameraModel` (image-right is −x, looking along +z with y up).
+struct BulbInView {
+    pixel: usize,
+    /// The 8 pixels around it: the wall behind (1.8 m behind the bulb, so its radiance is smooth
+    /// over 3 pixels; its error there is far below the noise).
+    ring: Vec<usize>,
+    /// The bulb's part of its pixel, I/(d² A_pix cos³θ_c) (see `film`), in Y per nm: the flat
+    /// spectrum spreads the 100 W evenly over the wavelength range.
+    direct: f64,
+    /// Camera-to-bulb distance d and its component along the optical axis.
+    distance: f64,
+    along_axis: f64,
+}
+
+fn bulb_in_view() -> BulbInView {
     let (cam, light) = ([0.0f64, 0.0, -0.8], [-0.12f64, 0.08, 0.2]);
     let v = [light[0] - cam[0], light[1] - cam[1], light[2] - cam[2]];
     let d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
@@ -624,14 +633,24 @@ fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
     let a_pix = (2.0 * half / 32.0).powi(2);
     let (sx, sy) = (-v[0] / v[2] / half, v[1] / v[2] / half);
     let (col, row) = (((sx + 1.0) * 16.0) as usize, ((1.0 - sy) * 16.0) as usize);
-    let pixel = row * 32 + col;
-    // Y per nm: a flat spectrum spreads the 100 W evenly over the wavelength range.
     let range = scene(&point_light_box(false)).simulation.wavelength_range_nm;
     let intensity = 100.0 / (4.0 * std::f64::consts::PI) / (range.1 - range.0);
-    let direct = intensity / (d2 * a_pix * cos_c.powi(3));
-    // The wall behind the light: the mean of the 8 pixels around it (the wall is 1.8 m behind, so
-    // its radiance is smooth over 3 pixels; its error there is far below the noise).
-    let ring: Vec<usize> = (0..9).filter(|&k| k != 4).map(|k| (row + k / 3 - 1) * 32 + col + k % 3 - 1).collect();
+    BulbInView {
+        pixel: row * 32 + col,
+        ring: (0..9).filter(|&k| k != 4).map(|k| (row + k / 3 - 1) * 32 + col + k % 3 - 1).collect(),
+        direct: intensity / (d2 * a_pix * cos_c.powi(3)),
+        distance: d2.sqrt(),
+        along_axis: v[2],
+    }
+}
+
+#[test]
+fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
+    // No camera ray can hit a point light, so the path tracer must connect the camera to it; the
+    // light tracer's emission splat and BDPT's s = 1, t = 1 strategy do the same. The light's
+    // pixel j then holds I/(d² A_pix cos³θ_c) (see `film`) on top of the wall behind it. Before
+    // the path tracer did this, its light pixel read the wall alone (0.0052 against 33.063).
+    let BulbInView { pixel, ring, direct, .. } = bulb_in_view();
     println!("closed form {direct}");
     for spectral in [false, true] {
         let toml = point_light_box(spectral);
@@ -690,23 +709,13 @@ fn a_point_light_in_an_index_matched_absorbing_cube_reads_its_transmitted_radian
         + "\n[materials.tinted]\ntype = \"dielectric\"\nior = 1.0\noutside_ior = 1.0\nabsorption_per_m = 2\n\n\
            [[surfaces]]\nname = \"cube\"\nmaterial = \"tinted\"\n\
            shape = { type = \"box\", min = [-0.3, -0.2, 0.0], max = [0.1, 0.3, 0.4] }\n";
-    let (cam, light) = ([0.0f64, 0.0, -0.8], [-0.12f64, 0.08, 0.2]);
-    let v = [light[0] - cam[0], light[1] - cam[1], light[2] - cam[2]];
-    let d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-    let cos_c = v[2] / d2.sqrt();
-    let half = (20.0f64).to_radians().tan();
-    let a_pix = (2.0 * half / 32.0).powi(2);
-    let (sx, sy) = (-v[0] / v[2] / half, v[1] / v[2] / half);
-    let (col, row) = (((sx + 1.0) * 16.0) as usize, ((1.0 - sy) * 16.0) as usize);
-    let pixel = row * 32 + col;
-    let range = scene(&toml).simulation.wavelength_range_nm;
-    let intensity = 100.0 / (4.0 * std::f64::consts::PI) / (range.1 - range.0);
-    let inside = 0.2 * d2.sqrt() / v[2];
-    let direct = intensity / (d2 * a_pix * cos_c.powi(3)) * (-2.0 * inside).exp();
-    let ring: Vec<usize> = (0..9).filter(|&k| k != 4).map(|k| (row + k / 3 - 1) * 32 + col + k % 3 - 1).collect();
+    let bulb = bulb_in_view();
+    let (pixel, ring) = (bulb.pixel, &bulb.ring);
+    let inside = 0.2 * bulb.distance / bulb.along_axis;
+    let direct = bulb.direct * (-2.0 * inside).exp();
     for (k, i) in [Integrator::Light, Integrator::Path, Integrator::Bdpt].into_iter().enumerate() {
         let (img, _, _) = render(&toml, i, 200_000, 31 + k as u64);
-        let (at, wall) = (region(&img, &[pixel]), region(&img, &ring));
+        let (at, wall) = (region(&img, &[pixel]), region(&img, ring));
         let excess = at.0 - wall.0;
         let bound = 4.0 * (at.1.powi(2) + wall.1.powi(2)).sqrt() + 1e-5 * direct;
         println!("{i:?}: light pixel {at:?} less wall {wall:?} = {excess}, closed form {direct}");

@@ -21,12 +21,11 @@
 use glam::Vec3A;
 
 use super::medium::Event;
-use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
+use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Onward, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::film::FilmBatch;
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
-use crate::integrators::passage;
 use crate::media;
 use crate::media::fluorescence;
 use crate::sampling::Sampler;
@@ -353,20 +352,14 @@ impl ImageKernel<'_> {
             let Some(hit) = next else { break };
             let Arrival { surface, material, n, is_dielectric } = self.arrive::<DIELECTRIC>(&hit);
             let (p, err) = geo.hit_point(&hit);
-            if DIELECTRIC && self.passable[surface as usize] {
-                // An index-matched boundary: straight on into the medium beyond, and no vertex, as
-                // connections pass it too; the next vertex's densities are measured from the last.
-                crossings += 1;
-                if crossings > passage::MAX_CROSSINGS {
-                    break;
+            match self.at_boundary::<DIELECTRIC>(&hit, surface, n, (p, err), dir, &mut crossings) {
+                Onward::Vertex => {}
+                Onward::Pass { origin: o, medium: m } => {
+                    (origin, medium, skip) = (o, m, hit.prim);
+                    continue;
                 }
-                medium =
-                    media::after_crossing(surface, n, dir, &self.scene.surface_inside, &self.scene.surface_outside);
-                origin = geo.spawn(p, err, hit.prim, dir);
-                skip = hit.prim;
-                continue;
+                Onward::End => break,
             }
-            crossings = 0;
             let index = path.len();
             let mut v = Vertex::endpoint(Kind::Surface, p, err, n, hit.prim, beta, 0.0);
             v.surface = surface;

@@ -254,6 +254,16 @@ fn walk_stretches(
     true
 }
 
+/// What a camera or light subpath does at a surface it arrived at (`ImageKernel::at_boundary`).
+enum Onward {
+    /// A vertex: the surface scatters.
+    Vertex,
+    /// An index-matched boundary: straight on from `origin`, just beyond it, in `medium`.
+    Pass { origin: Vec3A, medium: Option<u32> },
+    /// More than `passage::MAX_CROSSINGS` boundaries in a row: the subpath ends.
+    End,
+}
+
 /// A surface a camera or light subpath arrived at.
 struct Arrival<'m> {
     surface: u32,
@@ -398,6 +408,34 @@ impl<'a> ImageKernel<'a> {
             film.samples.push([xyz.x, xyz.y, xyz.z]);
         }
         film
+    }
+
+    /// Whether a subpath along `dir` makes a vertex at `hit` (on `surface`, normal `n`, hit point
+    /// `p` with error `err`) or passes it as an index-matched boundary (`passage`): no vertex, so
+    /// connections pass it too and densities are measured between the vertices either side.
+    /// `crossings` counts the boundaries passed since the last vertex.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn at_boundary<const DIELECTRIC: bool>(
+        &self,
+        hit: &crate::geometry::Hit,
+        surface: u32,
+        n: Vec3A,
+        (p, err): (Vec3A, Vec3A),
+        dir: Vec3A,
+        crossings: &mut usize,
+    ) -> Onward {
+        if !(DIELECTRIC && self.passable[surface as usize]) {
+            *crossings = 0;
+            return Onward::Vertex;
+        }
+        *crossings += 1;
+        if *crossings > crate::integrators::passage::MAX_CROSSINGS {
+            return Onward::End;
+        }
+        let (inside, outside) = (&self.scene.surface_inside, &self.scene.surface_outside);
+        let medium = crate::media::after_crossing(surface, n, dir, inside, outside);
+        Onward::Pass { origin: self.geo().spawn(p, err, hit.prim, dir), medium }
     }
 
     /// The surface `hit` lies on (what the segment to it cost is `fly`'s).

@@ -13,11 +13,10 @@
 use glam::Vec3A;
 
 use super::medium::Event;
-use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Wavelengths, LANES};
+use super::{scatter, Arrival, ImageKernel, LaneXyz, Lanes, Onward, Wavelengths, LANES};
 use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
-use crate::integrators::passage;
 use crate::media;
 use crate::sampling::Sampler;
 
@@ -140,22 +139,17 @@ impl ImageKernel<'_> {
                 }
             }
             let (p, err) = geo.hit_point(&hit);
-            if DIELECTRIC && self.passable[surface as usize] {
-                // An index-matched boundary: straight on into the medium beyond. Nothing scattered
-                // (no bounce is counted), so the last vertex's direction density stands, as light
-                // samples from it see through the boundary (`next_event`).
-                crossings += 1;
-                if crossings > passage::MAX_CROSSINGS {
-                    break;
+            match self.at_boundary::<DIELECTRIC>(&hit, surface, n, (p, err), dir, &mut crossings) {
+                Onward::Vertex => {}
+                Onward::Pass { origin: o, medium: m } => {
+                    // Nothing scattered (no bounce is counted), so the last vertex's direction
+                    // density stands, as light samples from it see through the boundary.
+                    travelled += hit.t as f64;
+                    (origin, medium, skip) = (o, m, hit.prim);
+                    continue;
                 }
-                travelled += hit.t as f64;
-                medium =
-                    media::after_crossing(surface, n, dir, &self.scene.surface_inside, &self.scene.surface_outside);
-                origin = geo.spawn(p, err, hit.prim, dir);
-                skip = hit.prim;
-                continue;
+                Onward::End => break,
             }
-            crossings = 0;
             if scatterings == self.max_scatterings {
                 break;
             }
