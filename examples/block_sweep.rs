@@ -3,7 +3,7 @@
 //! once per seed; run k of the first is compared with run k+1 of the second (independent
 //! streams), block by block, as the tests do: z = (a − b)/√(var_a + var_b), each block's
 //! variance Σ Y_var / n⁴ from its run's own pixel errors. Printed: how many |z| exceed 3, 4 and
-//! 5 against what a normal z would give, the spread of z, the worst blocks, and per block the
+//! 5 against what a normal z would give, the mean and RMS of z, the worst blocks, and per block the
 //! ratio of the spread of its mean over seeds to its mean reported variance.
 //!
 //! `cargo run --release --example block_sweep -- SCENE.toml BLOCK A:PHOTONS B:PHOTONS SEEDS [OFF,…]`
