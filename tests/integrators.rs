@@ -96,8 +96,8 @@ fn ceiling_lamp(toml: &str) -> String {
 /// block, so its Y_var-based block error is slightly optimistic.
 fn assert_three_integrators_agree(toml: &str, photons: u64, seed: u64, light_off: &[&str]) {
     let light_blocks = blocks_without(&primary_hits(toml), light_off, 128, 16);
-    let off = light_blocks.iter().filter(|&&b| !b).count();
-    assert!(off <= 16, "{light_off:?} cover {off} blocks");
+    let off = pixels_of_blocks(&light_blocks, false, 128, 16);
+    assert!(off.len() <= 16 * 256, "{light_off:?} cover {} blocks", off.len() / 256);
     let runs: Vec<(Integrator, Image, (f64, f64))> = [Integrator::Light, Integrator::Path, Integrator::Bdpt]
         .into_iter()
         .map(|i| {
@@ -122,16 +122,9 @@ fn assert_three_integrators_agree(toml: &str, photons: u64, seed: u64, light_off
                 let z = (x.0 - y.0) / (x.1 + y.1).sqrt();
                 assert!(z.abs() < 4.0, "block {k}: {ia:?} {x:?} vs {ib:?} {y:?}: z = {z:.2}");
             }
-            if light && off > 0 {
-                let region = |b: &[(f64, f64)]| {
-                    let inside = || b.iter().zip(&light_blocks).filter(|(_, &keep)| !keep).map(|(x, _)| x);
-                    (
-                        inside().map(|x| x.0).sum::<f64>() / off as f64,
-                        inside().map(|x| x.1).sum::<f64>() / (off * off) as f64,
-                    )
-                };
-                let (x, y) = (region(&ba), region(&bb));
-                let z = (x.0 - y.0) / (x.1 + y.1).sqrt();
+            if light && !off.is_empty() {
+                let (x, y) = (region(img_a, &off), region(img_b, &off));
+                let z = (x.0 - y.0) / x.1.hypot(y.1);
                 assert!(z.abs() < 6.0, "{light_off:?} as one region: {ia:?} {x:?} vs {ib:?} {y:?}: z = {z:.2}");
             }
         }
@@ -234,14 +227,11 @@ fn smooth_plastic_wall_path_and_bdpt_agree_and_the_light_tracer_agrees_off_it() 
     }
     // 25 blocks show neither; 8 show the glass and no wall.
     assert!(off.iter().filter(|&&o| o).count() >= 20, "the back wall and the glass cover too much");
-    let glass: Vec<usize> = (0..bp.len()).filter(|&k| off_wall[k] && !off[k]).collect();
-    assert!(glass.len() >= 6, "{} blocks show the glass and no wall", glass.len());
-    let region = |b: &[(f64, f64)]| {
-        let n = glass.len() as f64;
-        (glass.iter().map(|&k| b[k].0).sum::<f64>() / n, glass.iter().map(|&k| b[k].1).sum::<f64>() / (n * n))
-    };
-    let (l, d) = (region(&bl), region(&bb));
-    let z = (l.0 - d.0) / (l.1 + d.1).sqrt();
+    let on_glass: Vec<bool> = off_wall.iter().zip(&off).map(|(&w, &o)| w && !o).collect();
+    let glass = pixels_of_blocks(&on_glass, true, 64, 8);
+    assert!(glass.len() >= 6 * 64, "{} blocks show the glass and no wall", glass.len() / 64);
+    let (l, d) = (region(&light, &glass), region(&bdpt, &glass));
+    let z = (l.0 - d.0) / l.1.hypot(d.1);
     assert!(z.abs() < 6.0, "the glass's blocks as one region: light {l:?} vs BDPT {d:?}: z = {z:.2}");
 }
 
@@ -257,6 +247,12 @@ fn blocks_without(hits: &[Option<(String, glam::Vec3A)>], names: &[&str], size: 
             })
         })
         .collect()
+}
+
+/// The pixels (of a `size`² image) of the `block`² blocks whose flag in `blocks` is `which`.
+fn pixels_of_blocks(blocks: &[bool], which: bool, size: usize, block: usize) -> Vec<usize> {
+    let per_row = size / block;
+    (0..size * size).filter(|p| blocks[(p / size / block) * per_row + (p % size) / block] == which).collect()
 }
 
 #[test]
