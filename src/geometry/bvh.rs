@@ -318,6 +318,8 @@ impl RayPlanes {
 /// With `STILL` (a ray with a zero direction component) the boxes are also kept to those that
 /// contain the origin's coordinate on the axes the ray does not move along (`still_mask`).
 pub trait NodeTest {
+    /// Whether a leaf's triangles are tested in AVX2 lanes (`leaf4`) rather than one by one.
+    const LEAF_LANES: bool;
     fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]);
 }
 
@@ -325,6 +327,7 @@ pub trait NodeTest {
 pub struct Portable;
 
 impl NodeTest for Portable {
+    const LEAF_LANES: bool = false;
     #[inline(always)]
     fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
         let mut near = [0f32; 8];
@@ -354,6 +357,7 @@ pub struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
+    const LEAF_LANES: bool = true;
     #[inline(always)]
     fn hits<const STILL: bool>(node: &Node8, ray: &RayPlanes, t_max: f32) -> (u32, [f32; 8]) {
         use std::arch::x86_64::*;

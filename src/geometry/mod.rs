@@ -1,11 +1,13 @@
-//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes) and robust
-//! ray queries: a watertight ray–triangle test and ray origins offset by the hit point's own
-//! floating-point error bound, so that scattering works at millimetre and kilometre scales alike
-//! with no fixed epsilon.
+//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes; `leaf4`: a
+//! leaf's triangles in AVX2 lanes) and robust ray queries: a watertight ray–triangle test and
+//! ray origins offset by the hit point's own floating-point error bound, so that scattering
+//! works at millimetre and kilometre scales alike with no fixed epsilon.
 
 use std::time::Duration;
 
 mod bvh;
+#[cfg(target_arch = "x86_64")]
+mod leaf4;
 
 use bvh::Bvh8;
 /// The most triangles a scene's geometry can hold (the tree indexes them in 29 bits).
@@ -370,6 +372,26 @@ impl Geometry {
             |first| self.prefetch_triangle(first),
             #[inline(always)]
             |first, count, mut t_max| {
+                // A leaf's triangles in AVX2 lanes, the same bits (`leaf4`). Shadow rays keep the
+                // scalar loop, which stops at the first blocker: with lanes they ran slower.
+                #[cfg(target_arch = "x86_64")]
+                if T::LEAF_LANES {
+                    let valid = lanes_but(first, count, skip);
+                    // SAFETY: `LEAF_LANES` is the AVX2 node test's, run only under AVX2 and FMA;
+                    // the tree's leaves index `tris`.
+                    let lanes = unsafe { leaf4::test(&sheared, &self.tris, first, count, valid, t_max) };
+                    let mut candidates = lanes.candidates;
+                    while candidates != 0 {
+                        let k = candidates.trailing_zeros();
+                        candidates &= candidates - 1;
+                        let id = first + k;
+                        if let Some((t, b)) = lanes.hit(k as usize, t_max, &sheared, &self.tris[id as usize]) {
+                            t_max = t;
+                            best = Some(Hit { t, prim: id, b });
+                        }
+                    }
+                    return t_max;
+                }
                 for id in first..first + count {
                     if id != skip {
                         if let Some((t, b)) = sheared.intersect(t_max, &self.verts(id as usize)) {
@@ -483,6 +505,13 @@ impl Geometry {
         let err = gamma(7) * ((b0 * p0).abs() + (b1 * p1).abs() + (b2 * p2).abs());
         (p, err)
     }
+}
+
+/// The lanes of a leaf's triangles `first..first + count` that a ray tests: all but `skip`.
+#[inline(always)]
+fn lanes_but(first: u32, count: u32, skip: u32) -> u32 {
+    let k = skip.wrapping_sub(first);
+    ((1u32 << count) - 1) & !(if k < count { 1 << k } else { 0 })
 }
 
 /// Levels of a CWBVH (the root alone is 1).
@@ -783,6 +812,123 @@ mod tests {
             );
             assert_eq!(portable_free, !(bt < 0.5), "ray {k}: shadow test");
         }
+    }
+
+    /// The AVX2 leaf lanes (`leaf4`) give the scalar test's bits: the same hit (t, triangle,
+    /// barycentrics; and the same shadow answers), on paths that bounce around a tessellated room
+    /// (rays leaving surfaces at concave corners and shared edges, where the f64 test decides)
+    /// at millimetre to kilometre scales, with rays aimed exactly at edges and vertices.
+    #[test]
+    fn leaf_lanes_give_the_scalar_bits() {
+        use rand_xoshiro::rand_core::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        let mut u = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        for (scale, centre) in [(1e-3f32, 0.0f32), (1.0, 0.0), (1.0, 1e4), (1e3, 0.0), (1e4, -3e4)] {
+            // A closed unit cube, each face a 4 × 4 grid of squares, and 200 small random triangles.
+            let mut tris = Vec::new();
+            let at = |p: Vec3A| (p - 0.5) * scale + centre;
+            for axis in 0..3 {
+                for side in [0.0f32, 1.0] {
+                    for i in 0..4 {
+                        for j in 0..4 {
+                            let q = |di: i32, dj: i32| {
+                                let (a, b) = ((i + di) as f32 / 4.0, (j + dj) as f32 / 4.0);
+                                at(match axis {
+                                    0 => Vec3A::new(side, a, b),
+                                    1 => Vec3A::new(b, side, a),
+                                    _ => Vec3A::new(a, b, side),
+                                })
+                            };
+                            tris.push([q(0, 0), q(1, 0), q(1, 1)]);
+                            tris.push([q(0, 0), q(1, 1), q(0, 1)]);
+                        }
+                    }
+                }
+            }
+            for _ in 0..200 {
+                let c = Vec3A::new(u(), u(), u()) * 0.8 + 0.1;
+                tris.push([c, c + 0.1 * Vec3A::new(u(), u(), u()), c + 0.1 * Vec3A::new(u(), u(), u())].map(at));
+            }
+            let n = tris.len();
+            let mut geo = Geometry::build(tris, (0..n as u32).collect()).unwrap();
+            if !geo.simd {
+                return; // no AVX2 here: only the scalar test runs
+            }
+            let cast = |geo: &mut Geometry, o: Vec3A, d: Vec3A, t_max: f32, skip: u32| {
+                geo.simd = false;
+                let scalar = geo.intersect(o, d, t_max, skip);
+                let scalar_free = geo.unoccluded(o, d, t_max, [skip, NO_PRIM]);
+                geo.simd = true;
+                let lanes = geo.intersect(o, d, t_max, skip);
+                let bits = |h: Option<Hit>| h.map(|h| (h.t.to_bits(), h.prim, h.b.map(f32::to_bits)));
+                assert_eq!(bits(scalar), bits(lanes), "scale {scale}: ray {o} {d} up to {t_max}");
+                assert_eq!(scalar_free, geo.unoccluded(o, d, t_max, [skip, NO_PRIM]), "scale {scale}: {o} {d}");
+                lanes
+            };
+            for k in 0..4000 {
+                // Aimed at a grid vertex, a grid edge's midpoint, or anywhere.
+                let target = match k % 3 {
+                    0 => at(Vec3A::new((k % 5) as f32 / 4.0, ((k / 5) % 5) as f32 / 4.0, 1.0)),
+                    1 => at(Vec3A::new(0.125 + (k % 4) as f32 / 4.0, 0.0, ((k / 4) % 5) as f32 / 4.0)),
+                    _ => at(Vec3A::new(u(), u(), u()) * 1.2 - 0.1),
+                };
+                let mut o = at(Vec3A::new(u(), u(), u()) * 0.9 + 0.05);
+                let mut d = (target - o).normalize();
+                let mut skip = NO_PRIM;
+                // A path of bounces, each leaving its surface as the photon loop does.
+                for _ in 0..6 {
+                    let t_max = if u() < 0.3 { scale * u() } else { f32::INFINITY };
+                    let Some(hit) = cast(&mut geo, o, d, t_max, skip) else { break };
+                    let (p, err) = geo.hit_point(&hit);
+                    let ng = geo.normal(hit.prim as usize);
+                    let (t1, t2) = basis(ng);
+                    // Back to the side it came from, at grazing angles too (where a corner's
+                    // wall lies just ahead).
+                    let side = if d.dot(ng) > 0.0 { -1.0 } else { 1.0 };
+                    let (a, b, c) = (u() * 2.0 - 1.0, u() * 2.0 - 1.0, (1e-3 + u()).powi(3));
+                    d = (t1 * a + t2 * b + ng * (side * c)).normalize();
+                    o = geo.spawn(p, err, hit.prim, d);
+                    skip = hit.prim;
+                }
+            }
+        }
+    }
+
+    /// A ray leaving a large floor a hair from a wall of a concave corner meets the wall closer
+    /// than the f32 error bound can prove positive: the leaf lanes mark it doubtful and the f64
+    /// test decides, as in the scalar loop.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn leaf_lanes_send_doubtful_hits_to_the_f64_test() {
+        if !bvh::simd_available() {
+            return;
+        }
+        let floor = [Vec3A::new(0.0, -1e3, 0.0), Vec3A::new(1e3, -1e3, 0.0), Vec3A::new(0.0, 1e3, 0.0)];
+        let wall = [Vec3A::new(0.0, -1e3, 0.0), Vec3A::new(0.0, 1e3, 0.0), Vec3A::new(0.0, 0.0, 1e3)];
+        let geo = Geometry::build(vec![floor, wall], vec![0, 1]).unwrap();
+        let wall_id = (0..2).find(|&i| geo.surface_of(i) == 1).unwrap() as u32;
+        let floor_id = 1 - wall_id;
+        let first = wall_id.min(floor_id);
+        let k = wall_id - first;
+        let mut doubtful = 0;
+        // Origins ever closer to the wall, just above the floor, the ray running nearly along
+        // the wall (the test's z axis is then along the wall, where its bound is loosest).
+        for e in 1..10 {
+            let o = Vec3A::new(10f32.powi(-e), 3.0, 1e-9);
+            let d = Vec3A::new(-0.01, 1.0, 0.02).normalize();
+            let ray = ShearedRay::new(o, d);
+            // SAFETY: AVX2 and FMA are present; both triangles are in `tris`.
+            let lanes = unsafe { leaf4::test(&ray, &geo.tris, first, 2, lanes_but(first, 2, floor_id), f32::INFINITY) };
+            let scalar = ray.intersect(f32::INFINITY, &geo.verts(wall_id as usize));
+            let lane = (lanes.candidates == 1 << k)
+                .then(|| lanes.hit(k as usize, f32::INFINITY, &ray, &geo.tris[wall_id as usize]))
+                .flatten();
+            let bits = |h: Option<(f32, [f32; 3])>| h.map(|(t, b)| (t.to_bits(), b.map(f32::to_bits)));
+            assert!(scalar.is_some(), "the wall is ahead of {o}");
+            assert_eq!(bits(scalar), bits(lane), "from {o}");
+            doubtful += (lanes.doubtful == 1 << k) as u32;
+        }
+        assert!(doubtful > 0, "no origin came within the f32 bound of the wall");
     }
 
     /// An axis-aligned ray (a collimated beam along an axis) is cut by the boxes on the axes it
