@@ -18,8 +18,8 @@ impl Sampler {
         Self::for_stream(seed, 0, batch)
     }
 
-    /// Stream `stream` of a batch: the particle tracer uses stream 0, the camera integrators 1, so
-    /// the two never share random numbers.
+    /// Stream `stream` of a batch: the particle tracer uses stream 0, the path tracer 1 and BDPT
+    /// 2, so no two share random numbers.
     pub fn for_stream(seed: u64, stream: u64, batch: u64) -> Self {
         let mut mix = SplitMix64::seed_from_u64(seed);
         let key =

@@ -508,6 +508,7 @@ impl Geometry {
 }
 
 /// The lanes of a leaf's triangles `first..first + count` that a ray tests: all but `skip`.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn lanes_but(first: u32, count: u32, skip: u32) -> u32 {
     let k = skip.wrapping_sub(first);

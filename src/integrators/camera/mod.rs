@@ -386,7 +386,13 @@ impl<'a> ImageKernel<'a> {
         counters: &mut Counters,
         cancel: Option<&std::sync::atomic::AtomicBool>,
     ) -> FilmBatch {
-        let mut s = Sampler::for_stream(self.scene.simulation.seed, 1, batch);
+        // Each integrator its own stream, so that at one seed the three images are independent
+        // estimates (the tests' z-scores compare them as such).
+        let stream = match self.integrator {
+            Integrator::Path => 1,
+            _ => 2,
+        };
+        let mut s = Sampler::for_stream(self.scene.simulation.seed, stream, batch);
         let first = batch * crate::integrators::batch::BATCH_PHOTONS;
         let pixels = self.camera.pixels() as u64;
         let mut film = FilmBatch::default();
