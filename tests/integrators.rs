@@ -816,6 +816,10 @@ fn a_fluorescent_box_images_alike_in_light_path_and_bdpt() {
     // joins the two sides only where neither changed wavelength. Samples that find the lamp
     // through a re-emission are rare and heavy, so per-pixel errors understate a small
     // block's spread: the integrators are held to the whole image and 32×32 blocks (|z| < 4).
+    // The light tracer's splats of re-emitted light are heavy-tailed too: over 24 seeds
+    // (`block_sweep`, seeds 1000–1023) its blocks spread up to 2.06× their reported variance
+    // (mean 1.19), and light − BDPT reached z = 5.58 (2 of 384 past 4), while path − BDPT stayed
+    // within ±3.99 (RMS 1.03). Its blocks are held to 4·√2.06 ≈ 5.8, rounded to 6.
     let toml = cornell_with_medium_box(DYE, 1.0, 128);
     let s = scene(&toml);
     assert!(s.effects.fluorescence, "{:?}", s.effects.names());
@@ -833,9 +837,10 @@ fn a_fluorescent_box_images_alike_in_light_path_and_bdpt() {
             let z = (ma.0 - mb.0) / (ma.1.powi(2) + mb.1.powi(2)).sqrt();
             println!("mean Y {ia:?} {ma:?} {ib:?} {mb:?} z {z:.2}");
             assert!(z.abs() < 4.0, "mean Y {ia:?} {ma:?} vs {ib:?} {mb:?}: z = {z:.2}");
+            let bound = if *ia == Integrator::Light { 6.0 } else { 4.0 };
             for (k, (x, y)) in blocks(img_a, 32).iter().zip(&blocks(img_b, 32)).enumerate() {
                 let z = (x.0 - y.0) / (x.1 + y.1).sqrt();
-                assert!(z.abs() < 4.0, "block {k}: {ia:?} {x:?} vs {ib:?} {y:?}: z = {z:.2}");
+                assert!(z.abs() < bound, "block {k}: {ia:?} {x:?} vs {ib:?} {y:?}: z = {z:.2}");
             }
         }
     }
