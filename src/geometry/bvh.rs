@@ -2,7 +2,8 @@
 //! slab test per node, traversed nearest child first with a compact stack.
 //!
 //! The tree's shape comes from obvhs's builder (PLOC, reinsertion, SAH leaf collapsing into an
-//! 8-wide compressed BVH); its quantised child boxes are expanded here into f32 boxes rounded
+//! 8-wide compressed BVH), or for a small scene from `small_tree`, which fills the nodes itself
+//! (`Node8::set_child`); obvhs's quantised child boxes are expanded here into f32 boxes rounded
 //! outward, so that a node's eight children are tested at once with three FMAs per plane and a
 //! single cache-line-aligned load each, with no dequantisation per ray. The AVX2 test is chosen
 //! at run time; the portable one does the same arithmetic (fused multiply-adds, the same
@@ -33,6 +34,41 @@ pub struct Node8 {
     child: [u32; 8],
 }
 
+impl Node8 {
+    /// A node with no children.
+    pub const EMPTY: Node8 = Node8 {
+        planes: [
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+            [f32::INFINITY; 8],
+            [f32::NEG_INFINITY; 8],
+        ],
+        child: [EMPTY; 8],
+    };
+
+    /// The child reference of a leaf of `count` (1..=4) triangles from `first`.
+    pub fn leaf(first: u32, count: u32) -> u32 {
+        debug_assert!((1..=4).contains(&count));
+        LEAF | first << 2 | (count - 1)
+    }
+
+    /// Puts `child` (a node's index or a `leaf`) in `slot` with the box [lo, hi].
+    pub fn set_child(&mut self, slot: usize, child: u32, lo: [f32; 3], hi: [f32; 3]) {
+        self.child[slot] = child;
+        for axis in 0..3 {
+            self.planes[2 * axis][slot] = lo[axis];
+            self.planes[2 * axis + 1][slot] = hi[axis];
+        }
+    }
+
+    /// The indices of the inner nodes among the children.
+    pub fn inner_children(&self) -> impl Iterator<Item = u32> + '_ {
+        self.child.iter().copied().filter(|&c| c != EMPTY && c & LEAF == 0)
+    }
+}
+
 pub struct Bvh8 {
     nodes: Vec<Node8>,
     /// Whether the tree and its triangles outgrow the L2 cache, where prefetching pays (in the
@@ -61,17 +97,7 @@ impl Bvh8 {
             .nodes
             .iter()
             .map(|n| {
-                let mut out = Node8 {
-                    planes: [
-                        [f32::INFINITY; 8],
-                        [f32::NEG_INFINITY; 8],
-                        [f32::INFINITY; 8],
-                        [f32::NEG_INFINITY; 8],
-                        [f32::INFINITY; 8],
-                        [f32::NEG_INFINITY; 8],
-                    ],
-                    child: [EMPTY; 8],
-                };
+                let mut out = Node8::EMPTY;
                 let scale = n.e.map(|e| f32::from_bits((e as u32) << 23));
                 let p = n.p.to_array();
                 let q =
@@ -86,7 +112,7 @@ impl Bvh8 {
                     } else {
                         let count = (meta >> 5).count_ones();
                         let first = n.primitive_base_idx + (meta & 0x1f) as u32;
-                        LEAF | first << 2 | (count - 1)
+                        Node8::leaf(first, count)
                     };
                     for plane in 0..6 {
                         let axis = plane / 2;
@@ -96,6 +122,19 @@ impl Bvh8 {
                 out
             })
             .collect::<Vec<Node8>>();
+        Bvh8::from_nodes(nodes, triangle_bytes)
+    }
+
+    /// Each node's children, in slot order: a leaf's first triangle and count, or None for an
+    /// inner node.
+    #[cfg(test)]
+    pub fn shape(&self) -> Vec<Vec<Option<(u32, u32)>>> {
+        let kind = |c: u32| if c & LEAF != 0 { Some(((c & !LEAF) >> 2, (c & 3) + 1)) } else { None };
+        self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != EMPTY).map(|&c| kind(c)).collect()).collect()
+    }
+
+    /// A tree of `nodes`, the root first.
+    pub fn from_nodes(nodes: Vec<Node8>, triangle_bytes: usize) -> Self {
         let large = nodes.len() * std::mem::size_of::<Node8>() + triangle_bytes > 1 << 20;
         Bvh8 { nodes, large }
     }

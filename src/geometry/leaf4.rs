@@ -1,5 +1,5 @@
-//! A leaf's triangles (at most three, `max_prims_per_leaf`) against one ray in the lanes of one
-//! AVX2 pass: `ShearedRay::intersect`'s watertight test lane by lane, in its exact arithmetic
+//! A leaf's triangles (at most four) against one ray in the lanes of one AVX2 pass:
+//! `ShearedRay::intersect`'s watertight test lane by lane, in its exact arithmetic
 //! (the same f32 multiplies and adds in the same order, the edge functions in f64, no fused
 //! operations), so a lane's t and barycentrics are the scalar test's bits.
 //!

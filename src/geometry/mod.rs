@@ -1,13 +1,15 @@
-//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes; `leaf4`: a
-//! leaf's triangles in AVX2 lanes) and robust ray queries: a watertight ray–triangle test and
-//! ray origins offset by the hit point's own floating-point error bound, so that scattering
-//! works at millimetre and kilometre scales alike with no fixed epsilon.
+//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes, or
+//! `small_tree`'s for a few dozen triangles; `leaf4`: a leaf's triangles in AVX2 lanes) and
+//! robust ray queries: a watertight ray–triangle test and ray origins offset by the hit point's
+//! own floating-point error bound, so that scattering works at millimetre and kilometre scales
+//! alike with no fixed epsilon.
 
 use std::time::Duration;
 
 mod bvh;
 #[cfg(target_arch = "x86_64")]
 mod leaf4;
+mod small_tree;
 
 use bvh::Bvh8;
 /// The most triangles a scene's geometry can hold (the tree indexes them in 29 bits).
@@ -192,11 +194,41 @@ impl Geometry {
                 shading: vec![],
             });
         }
+        let triangle_bytes = tris.len() * std::mem::size_of::<PackedTriangle>();
+        let (order, tree) = match small_tree::build(&tris, triangle_bytes) {
+            Some(small) => small,
+            None => Self::obvhs_tree(&tris, triangle_bytes)?,
+        };
+        let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
+        // Triangles of one surface are given together, so each one's local index counts up.
+        let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        let local_given: Vec<u32> = surface
+            .iter()
+            .map(|&s| {
+                let k = seen.entry(s).or_insert(0);
+                *k += 1;
+                *k - 1
+            })
+            .collect();
+        let local: Vec<u32> = order.iter().map(|&i| local_given[i]).collect();
+        let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
+        let tris: Vec<PackedTriangle> = verts
+            .iter()
+            .zip(&surface)
+            .zip(&order)
+            .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
+            .collect();
+        let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
+        Ok(Geometry { tris, surface, local, bvh: Some(tree), simd: bvh::simd_available(), shading })
+    }
+
+    /// obvhs's 8-wide CWBVH over `tris`, expanded to full-precision boxes (`bvh`), and the
+    /// triangles' leaf order.
+    fn obvhs_tree(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), String> {
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
-        // The tree's shape is obvhs's 8-wide CWBVH, expanded to full-precision boxes (`bvh`).
-        // Small leaves: with up to 8 triangles per leaf a Cornell
-        // ray made about 10 triangle tests; with 3 (the most a CWBVH leaf holds) it traces as fast as
-        // with 2, and faster than with 1.
+        // Small leaves: with up to 8 triangles per leaf a Cornell ray made about 10 triangle
+        // tests; with 3 (the most a CWBVH leaf holds) it traces as fast as with 2, and faster
+        // than with 1.
         let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
         let cw = build_cwbvh(&padded, params, &mut Duration::default());
         // The traversal's stack holds 7 children per level for 31 levels, so a deeper tree must
@@ -219,29 +251,8 @@ impl Geometry {
                 tris.len()
             ));
         }
-        let order: Vec<usize> = cw.primitive_indices.iter().map(|&i| i as usize).collect();
-        let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
-        // Triangles of one surface are given together, so each one's local index counts up.
-        let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-        let local_given: Vec<u32> = surface
-            .iter()
-            .map(|&s| {
-                let k = seen.entry(s).or_insert(0);
-                *k += 1;
-                *k - 1
-            })
-            .collect();
-        let local: Vec<u32> = order.iter().map(|&i| local_given[i]).collect();
-        let surface: Vec<u32> = order.iter().map(|&i| surface[i]).collect();
-        let tris: Vec<PackedTriangle> = verts
-            .iter()
-            .zip(&surface)
-            .zip(&order)
-            .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
-            .collect();
-        let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
-        let tree = Some(Bvh8::from_cwbvh(&cw, std::mem::size_of_val(tris.as_slice())));
-        Ok(Geometry { tris, surface, local, bvh: tree, simd: bvh::simd_available(), shading })
+        let order = cw.primitive_indices.iter().map(|&i| i as usize).collect();
+        Ok((order, Bvh8::from_cwbvh(&cw, triangle_bytes)))
     }
 
     /// Whether any triangle has vertex normals for smooth shading.
@@ -763,17 +774,35 @@ mod tests {
     /// equal t), and the AVX2 and portable node tests give the same bits.
     #[test]
     fn tree_matches_brute_force_and_both_node_tests_agree() {
+        // obvhs's tree (3012 triangles), and the small scenes' own (`small_tree`: 64), at
+        // scales from 1e-3 to 1e4 and 3e4 off the origin.
+        // obvhs's boxes are padded by 10⁻⁵ of their coordinates, so its tree is not held to
+        // rays from far away: one aimed at a corner of the box from 1000 box sizes off found
+        // the face beside the nearest one, an ulp of t farther (the nearest face's box culled by
+        // the slab test's rounding of t = 3000).
+        tree_matches_brute_force(3000, 1.0, Vec3A::ZERO, false);
+        const { assert!(52 + 12 == small_tree::MOST_TRIANGLES) };
+        for (scale, offset) in [(1.0, 0.0), (1e-3, 0.0), (1e4, 0.0), (1.0, 3e4)] {
+            tree_matches_brute_force(52, scale, Vec3A::splat(offset), true);
+        }
+    }
+
+    /// `random` small random triangles in a unit cube, plus a closed box of 12 around it, all
+    /// scaled by `scale` and moved by `offset`; rays from inside the cube, axis-aligned ones
+    /// (zero direction components) and rays aimed at the box's corners and edges among random
+    /// ones, and (with `far`) rays from 1000 box sizes away at its corners and edges. The
+    /// tree's hit is the brute-force closest hit and the shadow test agrees.
+    fn tree_matches_brute_force(random: usize, scale: f32, offset: Vec3A, far: bool) {
         use rand_xoshiro::rand_core::{Rng, SeedableRng};
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
         let mut u = || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        // 3000 random small triangles in a unit cube, plus a closed box of 12 around it, and
-        // axis-aligned rays (zero direction components) among random ones.
+        let place = |p: Vec3A| p * scale + offset;
         let mut tris = Vec::new();
-        for _ in 0..3000 {
+        for _ in 0..random {
             let c = Vec3A::new(u(), u(), u());
-            tris.push([c, c + 0.05 * Vec3A::new(u(), u(), u()), c + 0.05 * Vec3A::new(u(), u(), u())]);
+            tris.push([c, c + 0.05 * Vec3A::new(u(), u(), u()), c + 0.05 * Vec3A::new(u(), u(), u())].map(place));
         }
-        let corners = |i: usize| Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32) * 3.0 - 1.0;
+        let corners = |i: usize| place(Vec3A::new((i & 1) as f32, ((i >> 1) & 1) as f32, (i >> 2) as f32) * 3.0 - 1.0);
         for [a, b, c, d] in [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]] {
             tris.push([corners(a), corners(b), corners(c)]);
             tris.push([corners(a), corners(c), corners(d)]);
@@ -782,12 +811,23 @@ mod tests {
         let mut geo = Geometry::build(tris, (0..n as u32).collect()).unwrap();
         let simd = geo.simd;
         for k in 0..20_000 {
-            let o = Vec3A::new(u(), u(), u());
-            let d = match k % 4 {
+            let mut o = place(Vec3A::new(u(), u(), u()));
+            let d = match k % 8 {
                 0 => Vec3A::new(0.0, 0.0, if u() < 0.5 { 1.0 } else { -1.0 }),
                 1 => Vec3A::new(-0.0, 1.0, 0.0),
+                // A corner of the box, or the midpoint of one of its edges.
+                2 => (corners(k / 8 % 8) - o).normalize(),
+                3 => ((corners(k / 8 % 8) + corners((k / 8 + 1) % 8)) * 0.5 - o).normalize(),
+                // From a thousand box sizes away, at a corner or an edge of the box's outside.
+                4 | 5 if far => {
+                    o = place(Vec3A::splat(0.5) + 3000.0 * (Vec3A::new(u(), u(), u()) - 0.5).normalize());
+                    let edge = if k % 8 == 4 { 0 } else { 1 };
+                    ((corners(k / 8 % 8) + corners((k / 8 + edge) % 8)) * 0.5 - o).normalize()
+                }
                 _ => (Vec3A::new(u(), u(), u()) - 0.5).normalize(),
             };
+            // The shadow segment: half the cube's size.
+            let shadow_t = 0.5 * scale;
             let mut brute: Option<(f32, u32)> = None;
             for prim in 0..n {
                 if let Some((t, _)) = intersect_triangle(o, d, f32::INFINITY, &geo.verts(prim)) {
@@ -798,20 +838,74 @@ mod tests {
             }
             geo.simd = false;
             let portable = geo.intersect(o, d, f32::INFINITY, NO_PRIM);
-            let portable_free = geo.unoccluded(o, d, 0.5, [NO_PRIM; 2]);
+            let portable_free = geo.unoccluded(o, d, shadow_t, [NO_PRIM; 2]);
             geo.simd = simd;
             let fast = geo.intersect(o, d, f32::INFINITY, NO_PRIM);
             assert_eq!(portable.map(|h| (h.t.to_bits(), h.prim)), fast.map(|h| (h.t.to_bits(), h.prim)), "ray {k}");
-            assert_eq!(portable_free, geo.unoccluded(o, d, 0.5, [NO_PRIM; 2]), "ray {k}");
-            let (bt, bp) = brute.expect("inside the closed box every ray hits");
-            let hit = fast.unwrap();
+            assert_eq!(portable_free, geo.unoccluded(o, d, shadow_t, [NO_PRIM; 2]), "ray {k}");
+            // A ray from outside aimed at a corner can pass it by a rounding: then neither hits.
+            let Some((bt, bp)) = brute else {
+                assert!(far && matches!(k % 8, 4 | 5) && fast.is_none() && portable_free, "ray {k}: tree {fast:?}");
+                continue;
+            };
+            let hit = fast.unwrap_or_else(|| panic!("ray {k}: brute ({bt}, {bp}), the tree none"));
             assert!(
                 hit.t == bt
                     && (hit.prim == bp
                         || intersect_triangle(o, d, f32::INFINITY, &geo.verts(hit.prim as usize)).unwrap().0 == bt),
-                "ray {k}: tree {hit:?}, brute ({bt}, {bp})"
+                "ray {k} (scale {scale}, offset {offset}): tree {hit:?}, brute ({bt}, {bp})"
             );
-            assert_eq!(portable_free, !(bt < 0.5), "ray {k}: shadow test");
+            assert_eq!(portable_free, !(bt < shadow_t), "ray {k}: shadow test");
+        }
+    }
+
+    /// A room of five walls, a lamp below its ceiling and two blocks on its floor, every face a
+    /// quad: the small-scene tree puts each wall and the lamp in a leaf under the root, and each
+    /// node below the root holds one block's faces only (obvhs's tree had put half a wall and the
+    /// lamp in a block's node, a box across half the room that most rays entered).
+    #[test]
+    fn small_tree_keeps_walls_at_the_root_and_blocks_apart() {
+        let quad = |c: [[f32; 3]; 4]| {
+            let v = c.map(Vec3A::from);
+            [[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
+        };
+        let block = |lo: [f32; 3], hi: [f32; 3]| {
+            let [x0, y0, z0] = lo;
+            let [x1, y1, z1] = hi;
+            [
+                quad([[x0, y1, z0], [x1, y1, z0], [x1, y1, z1], [x0, y1, z1]]),
+                quad([[x0, y0, z0], [x1, y0, z0], [x1, y1, z0], [x0, y1, z0]]),
+                quad([[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]]),
+                quad([[x0, y0, z0], [x0, y1, z0], [x0, y1, z1], [x0, y0, z1]]),
+                quad([[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]]),
+            ]
+        };
+        let mut quads = vec![
+            quad([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]]),
+            quad([[0.0, 1.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]]),
+            quad([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [0.0, 1.0, 1.0]]),
+            quad([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 1.0], [0.0, 0.0, 1.0]]),
+            quad([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 1.0, 1.0], [1.0, 0.0, 1.0]]),
+            quad([[0.4, 0.999, 0.4], [0.6, 0.999, 0.4], [0.6, 0.999, 0.6], [0.4, 0.999, 0.6]]),
+        ];
+        quads.extend(block([0.1, 0.0, 0.1], [0.4, 0.3, 0.4]));
+        quads.extend(block([0.6, 0.0, 0.5], [0.9, 0.6, 0.8]));
+        let tris: Vec<[Vec3A; 3]> = quads.concat();
+        let n = tris.len();
+        // Surfaces 0–4 the walls, 5 the lamp, 6 and 7 the blocks.
+        let surface: Vec<u32> = (0..n as u32).map(|t| if t < 12 { t / 2 } else { 6 + (t - 12) / 10 }).collect();
+        let geo = Geometry::build(tris, surface).unwrap();
+        let shape = geo.bvh.as_ref().unwrap().shape();
+        let surfaces_of = |(first, count): (u32, u32)| (first..first + count).map(|t| geo.surface[t as usize]);
+        let in_root_leaves: Vec<u32> = shape[0].iter().flatten().flat_map(|&leaf| surfaces_of(leaf)).collect();
+        for wall in 0..6 {
+            assert_eq!(in_root_leaves.iter().filter(|&&s| s == wall).count(), 2, "surface {wall}: {shape:?}");
+        }
+        assert!(shape.len() >= 3, "{shape:?}");
+        for node in &shape[1..] {
+            let mut surfaces = node.iter().map(|leaf| leaf.expect("blocks' nodes hold leaves")).flat_map(surfaces_of);
+            let first = surfaces.next().unwrap();
+            assert!(first >= 6 && surfaces.all(|s| s == first), "{shape:?}");
         }
     }
 

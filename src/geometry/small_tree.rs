@@ -1,0 +1,171 @@
+//! The tree of a scene of a few dozen triangles (a room, a box of blocks), built whole instead of
+//! by obvhs: clusters merged bottom-up, each time the pair whose box grows least over its two
+//! parts' (searched exhaustively: a lamp joins the ceiling it hangs under, a block's faces join
+//! each other), then collapsed into 8-wide nodes by opening the largest child while a slot is
+//! free (as Embree widens its binary trees). A triangle pair stays one leaf, so each wall of a
+//! room is a flat leaf box under the root and each block a node of its own. obvhs's tree of the
+//! Cornell box put half the back wall and the lamp into the tall block's node, a box spanning
+//! half the room that most rays entered.
+//!
+//! Boxes are the triangles' padded bounds, widened (`PAD_OF_DIAGONAL`) so that the slab test's
+//! rounding never drops a box that a ray's triangle hit lies in.
+
+use glam::Vec3A;
+use obvhs::Boundable;
+
+use super::bvh::{Bvh8, Node8};
+use super::PaddedTriangle;
+
+/// Scenes of up to this many triangles get this tree (the exhaustive merge search is cubic).
+pub const MOST_TRIANGLES: usize = 64;
+/// Clusters of up to this many triangles are never opened: a quad stays one leaf.
+const ATOM: u32 = 2;
+/// The most triangles in a leaf (`leaf4`'s lanes).
+const LEAF_MOST: u32 = 4;
+/// Each box, over its triangles' padded bounds (`PaddedTriangle`: 10⁻⁵ of their coordinates),
+/// is widened by this share of the scene's diagonal. The slab test's t errs by about an ulp of
+/// the ray origin's coordinates and two of the distance travelled (the roundings of 1/d, of o/d
+/// and of the fused multiply-add), so this covers rays from up to a thousand scene sizes away,
+/// as the quantisation of obvhs's boxes (¹⁄₂₅₅ of their node's size) does.
+const PAD_OF_DIAGONAL: f64 = 1.0 / 4096.0;
+
+struct Cluster {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    count: u32,
+    /// The two merged clusters, or the triangle of a single one.
+    parts: Result<(usize, usize), usize>,
+}
+
+impl Cluster {
+    /// Half the surface area of the box around both (the growth criterion needs no factor 2).
+    fn merged_area(&self, other: &Cluster) -> f64 {
+        let e: [f64; 3] =
+            std::array::from_fn(|a| self.hi[a].max(other.hi[a]) as f64 - self.lo[a].min(other.lo[a]) as f64);
+        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    }
+
+    fn area(&self) -> f64 {
+        self.merged_area(self)
+    }
+}
+
+/// The triangles' leaf order (position → index in `tris`) and the tree over them; None when
+/// the scene is not small, or the tree would be deeper than the traversal's stack allows.
+pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, Bvh8)> {
+    if tris.is_empty() || tris.len() > MOST_TRIANGLES {
+        return None;
+    }
+    let mut clusters: Vec<Cluster> = tris
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let bounds = PaddedTriangle(*t).aabb();
+            Cluster { lo: bounds.min.to_array(), hi: bounds.max.to_array(), count: 1, parts: Err(i) }
+        })
+        .collect();
+    let mut active: Vec<usize> = (0..clusters.len()).collect();
+    while active.len() > 1 {
+        // The pair whose box grows least over its parts' own; ties to the first pair found, so
+        // the tree depends on the triangles' order only.
+        let mut best = (f64::INFINITY, 0, 1);
+        for i in 0..active.len() {
+            for j in i + 1..active.len() {
+                let (a, b) = (&clusters[active[i]], &clusters[active[j]]);
+                let a = a.merged_area(b) - a.area() - b.area();
+                if a < best.0 {
+                    best = (a, i, j);
+                }
+            }
+        }
+        let (_, i, j) = best;
+        let (a, b) = (&clusters[active[i]], &clusters[active[j]]);
+        let merged = Cluster {
+            lo: std::array::from_fn(|k| a.lo[k].min(b.lo[k])),
+            hi: std::array::from_fn(|k| a.hi[k].max(b.hi[k])),
+            count: a.count + b.count,
+            parts: Ok((active[i], active[j])),
+        };
+        clusters.push(merged);
+        active[i] = clusters.len() - 1;
+        active.swap_remove(j);
+    }
+    let (lo, hi) = (clusters[active[0]].lo, clusters[active[0]].hi);
+    let diagonal = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
+    let pad = diagonal * PAD_OF_DIAGONAL;
+    let mut tree = Collapse { clusters: &clusters, pad, nodes: vec![], order: vec![] };
+    let root = active[0];
+    if clusters[root].count <= LEAF_MOST {
+        // Too few triangles for an inner node of their own: a root holding one leaf.
+        tree.node(&[root]);
+    } else {
+        tree.node_of(root);
+    }
+    let depth = tree.depth(0);
+    if depth >= 32 {
+        return None;
+    }
+    Some((tree.order, Bvh8::from_nodes(tree.nodes, triangle_bytes)))
+}
+
+struct Collapse<'a> {
+    clusters: &'a [Cluster],
+    pad: f64,
+    nodes: Vec<Node8>,
+    order: Vec<usize>,
+}
+
+impl Collapse<'_> {
+    /// A node for inner cluster `c`: its two parts, then the largest openable child replaced by
+    /// its parts while a slot is free.
+    fn node_of(&mut self, c: usize) -> u32 {
+        let Ok((a, b)) = self.clusters[c].parts else { unreachable!("a leaf cluster has no node") };
+        let mut kids = vec![a, b];
+        while kids.len() < 8 {
+            let open = (0..kids.len())
+                .filter(|&k| self.clusters[kids[k]].count > ATOM)
+                .max_by(|&x, &y| self.clusters[kids[x]].area().total_cmp(&self.clusters[kids[y]].area()));
+            let Some(k) = open else { break };
+            let Ok((a, b)) = self.clusters[kids[k]].parts else { unreachable!("clusters above ATOM are merged") };
+            kids[k] = a;
+            kids.insert(k + 1, b);
+        }
+        self.node(&kids)
+    }
+
+    /// A node with children `kids`: those of up to `LEAF_MOST` triangles as leaves (their
+    /// triangles appended to the order), the rest as nodes of their own.
+    fn node(&mut self, kids: &[usize]) -> u32 {
+        let at = self.nodes.len();
+        self.nodes.push(Node8::EMPTY);
+        for (slot, &k) in kids.iter().enumerate() {
+            let cluster = &self.clusters[k];
+            let child = if cluster.count <= LEAF_MOST {
+                let first = self.order.len() as u32;
+                self.triangles_of(k);
+                Node8::leaf(first, cluster.count)
+            } else {
+                self.node_of(k)
+            };
+            let lo = cluster.lo.map(|x| ((x as f64 - self.pad) as f32).next_down());
+            let hi = cluster.hi.map(|x| ((x as f64 + self.pad) as f32).next_up());
+            self.nodes[at].set_child(slot, child, lo, hi);
+        }
+        at as u32
+    }
+
+    fn triangles_of(&mut self, c: usize) {
+        match self.clusters[c].parts {
+            Ok((a, b)) => {
+                self.triangles_of(a);
+                self.triangles_of(b);
+            }
+            Err(t) => self.order.push(t),
+        }
+    }
+
+    /// Levels from node `n` down (a node alone is 1).
+    fn depth(&self, n: usize) -> usize {
+        1 + self.nodes[n].inner_children().map(|c| self.depth(c as usize)).max().unwrap_or(0)
+    }
+}
