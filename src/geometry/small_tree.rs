@@ -72,9 +72,9 @@ pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, 
         for i in 0..active.len() {
             for j in i + 1..active.len() {
                 let (a, b) = (&clusters[active[i]], &clusters[active[j]]);
-                let a = a.merged_area(b) - a.area() - b.area();
-                if a < best.0 {
-                    best = (a, i, j);
+                let growth = a.merged_area(b) - a.area() - b.area();
+                if growth < best.0 {
+                    best = (growth, i, j);
                 }
             }
         }
