@@ -13,13 +13,19 @@ pub struct Sampler {
     rng: Xoshiro256PlusPlus,
 }
 
+/// Each integrator's stream of a batch (`Sampler::for_stream`), so no two share random numbers
+/// and at one seed their images are independent estimates.
+pub const PARTICLE_STREAM: u64 = 0;
+pub const PATH_STREAM: u64 = 1;
+pub const BDPT_STREAM: u64 = 2;
+
 impl Sampler {
+    /// The particle tracer's stream of a batch.
     pub fn for_batch(seed: u64, batch: u64) -> Self {
-        Self::for_stream(seed, 0, batch)
+        Self::for_stream(seed, PARTICLE_STREAM, batch)
     }
 
-    /// Stream `stream` of a batch: the particle tracer uses stream 0, the path tracer 1 and BDPT
-    /// 2, so no two share random numbers.
+    /// Stream `stream` of a batch (`PARTICLE_STREAM`, `PATH_STREAM`, `BDPT_STREAM`).
     pub fn for_stream(seed: u64, stream: u64, batch: u64) -> Self {
         let mut mix = SplitMix64::seed_from_u64(seed);
         let key =

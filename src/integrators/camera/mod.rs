@@ -30,7 +30,7 @@ use crate::geometry::{shadow_segment, Geometry, RayEnd};
 use crate::integrators::clear_view::ClearView;
 use crate::integrators::passage::{is_passable, Through};
 use crate::lights::Emitter;
-use crate::sampling::Sampler;
+use crate::sampling::{Sampler, BDPT_STREAM, PATH_STREAM};
 use crate::scene::{Material, Scene};
 
 pub use crate::scene::Integrator;
@@ -389,8 +389,8 @@ impl<'a> ImageKernel<'a> {
         // Each integrator its own stream, so that at one seed the three images are independent
         // estimates (the tests' z-scores compare them as such).
         let stream = match self.integrator {
-            Integrator::Path => 1,
-            _ => 2,
+            Integrator::Path => PATH_STREAM,
+            _ => BDPT_STREAM,
         };
         let mut s = Sampler::for_stream(self.scene.simulation.seed, stream, batch);
         let first = batch * crate::integrators::batch::BATCH_PHOTONS;
