@@ -790,8 +790,9 @@ mod tests {
     /// `random` small random triangles in a unit cube, plus a closed box of 12 around it, all
     /// scaled by `scale` and moved by `offset`; rays from inside the cube, axis-aligned ones
     /// (zero direction components) and rays aimed at the box's corners and edges among random
-    /// ones, and (with `far`) rays from 1000 box sizes away at its corners and edges. The
-    /// tree's hit is the brute-force closest hit and the shadow test agrees.
+    /// ones, and (with `far`) rays from 1000 box sizes away at its corners and edges (rays that
+    /// pass a corner by a rounding then hit nothing). The tree's hit is the brute-force closest
+    /// hit and the shadow test agrees.
     fn tree_matches_brute_force(random: usize, scale: f32, offset: Vec3A, far: bool) {
         use rand_xoshiro::rand_core::{Rng, SeedableRng};
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
@@ -815,10 +816,11 @@ mod tests {
             let d = match k % 8 {
                 0 => Vec3A::new(0.0, 0.0, if u() < 0.5 { 1.0 } else { -1.0 }),
                 1 => Vec3A::new(-0.0, 1.0, 0.0),
-                // A corner of the box, or the midpoint of one of its edges.
+                // A corner of the box, or the midpoint of two (an edge's, a face's or the box's
+                // centre).
                 2 => (corners(k / 8 % 8) - o).normalize(),
                 3 => ((corners(k / 8 % 8) + corners((k / 8 + 1) % 8)) * 0.5 - o).normalize(),
-                // From a thousand box sizes away, at a corner or an edge of the box's outside.
+                // From a thousand box sizes away, at a corner or the midpoint of two.
                 4 | 5 if far => {
                     o = place(Vec3A::splat(0.5) + 3000.0 * (Vec3A::new(u(), u(), u()) - 0.5).normalize());
                     let edge = if k % 8 == 4 { 0 } else { 1 };
