@@ -133,6 +133,17 @@ impl Bvh8 {
         self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != EMPTY).map(|&c| kind(c)).collect()).collect()
     }
 
+    /// Levels of the tree (the root alone is 1). Iterative: a pathological tree can be deep.
+    pub fn depth(&self) -> usize {
+        let mut deepest = 0;
+        let mut todo = vec![(0usize, 1usize)];
+        while let Some((n, d)) = todo.pop() {
+            deepest = deepest.max(d);
+            todo.extend(self.nodes[n].inner_children().map(|c| (c as usize, d + 1)));
+        }
+        deepest
+    }
+
     /// A tree of `nodes`, the root first.
     pub fn from_nodes(nodes: Vec<Node8>, triangle_bytes: usize) -> Self {
         let large = nodes.len() * std::mem::size_of::<Node8>() + triangle_bytes > 1 << 20;

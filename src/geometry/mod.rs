@@ -17,7 +17,6 @@ pub use bvh::MAX_TRIANGLES;
 use glam::{Vec3A, Vec3Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::builder::build_cwbvh;
-use obvhs::cwbvh::CwBvh;
 use obvhs::{Boundable, BvhBuildParams};
 
 /// No primitive: used as "skip nothing".
@@ -199,6 +198,20 @@ impl Geometry {
             Some(small) => small,
             None => Self::obvhs_tree(&tris, triangle_bytes)?,
         };
+        // The traversal's stack holds 7 children per level for 31 levels, so a deeper tree must
+        // not be traced. PLOC trees of real scenes are ~10 levels deep; only a pathological input
+        // gets there (a disk of 10^5 segments: 131 levels, its sliver triangles all overlapping
+        // at the centre). A small scene's tree cannot: each level below its root takes 7 or more
+        // of its 64 triangles.
+        let depth = tree.depth();
+        if depth >= 32 {
+            return Err(format!(
+                "the scene's {} triangles make a ray-tracing tree {depth} levels deep, and photon traces at most 31: \
+                 this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
+                 use fewer segments or a better-shaped mesh",
+                order.len()
+            ));
+        }
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         // Triangles of one surface are given together, so each one's local index counts up.
         let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
@@ -222,19 +235,9 @@ impl Geometry {
         Ok(Geometry { tris, surface, local, bvh: Some(tree), simd: bvh::simd_available(), shading })
     }
 
-    /// obvhs's 8-wide CWBVH over `tris`, expanded to full-precision boxes (`bvh`), and the
-    /// triangles' leaf order.
+    /// obvhs's 8-wide CWBVH over `tris`, expanded to full-precision boxes (`bvh`) node for
+    /// node, and the triangles' leaf order.
     fn obvhs_tree(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), String> {
-        let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
-        // Small leaves: with up to 8 triangles per leaf a Cornell ray made about 10 triangle
-        // tests; with 3 (the most a CWBVH leaf holds) it traces as fast as with 2, and faster
-        // than with 1.
-        let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
-        let cw = build_cwbvh(&padded, params, &mut Duration::default());
-        // The traversal's stack holds 7 children per level for 31 levels, so a deeper tree must
-        // not be traced. PLOC trees of real scenes are
-        // ~10 levels deep; only a pathological input gets there (a disk of 10^5 segments: 131
-        // levels, its sliver triangles all overlapping at the centre).
         if tris.len() >= bvh::MAX_TRIANGLES {
             return Err(format!(
                 "the scene has {} triangles, and photon traces at most {}",
@@ -242,15 +245,12 @@ impl Geometry {
                 bvh::MAX_TRIANGLES - 1
             ));
         }
-        let depth = cwbvh_depth(&cw);
-        if depth >= 32 {
-            return Err(format!(
-                "the scene's {} triangles make a ray-tracing tree {depth} levels deep, and photon traces at most 31: \
-                 this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
-                 use fewer segments or a better-shaped mesh",
-                tris.len()
-            ));
-        }
+        let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
+        // Small leaves: with up to 8 triangles per leaf a Cornell ray made about 10 triangle
+        // tests; with 3 (the most a CWBVH leaf holds) it traces as fast as with 2, and faster
+        // than with 1.
+        let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
+        let cw = build_cwbvh(&padded, params, &mut Duration::default());
         let order = cw.primitive_indices.iter().map(|&i| i as usize).collect();
         Ok((order, Bvh8::from_cwbvh(&cw, triangle_bytes)))
     }
@@ -524,19 +524,6 @@ impl Geometry {
 fn lanes_but(first: u32, count: u32, skip: u32) -> u32 {
     let k = skip.wrapping_sub(first);
     ((1u32 << count) - 1) & !(if k < count { 1 << k } else { 0 })
-}
-
-/// Levels of a CWBVH (the root alone is 1).
-fn cwbvh_depth(bvh: &CwBvh) -> usize {
-    let mut deepest = 0;
-    let mut todo = vec![(0usize, 1usize)];
-    while let Some((n, d)) = todo.pop() {
-        deepest = deepest.max(d);
-        let Some(node) = bvh.nodes.get(n) else { continue };
-        let inner = (node.imask as u32).count_ones() as usize;
-        todo.extend((0..inner).map(|k| (node.child_base_idx as usize + k, d + 1)));
-    }
-    deepest
 }
 
 /// Moves `p` off the surface along the normal, to the side `dir` leaves by, far enough that the

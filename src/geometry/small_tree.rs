@@ -11,6 +11,7 @@
 //! rounding never drops a box that a ray's triangle hit lies in.
 
 use glam::Vec3A;
+use obvhs::aabb::Aabb;
 use obvhs::Boundable;
 
 use super::bvh::{Bvh8, Node8};
@@ -30,28 +31,19 @@ const LEAF_MOST: u32 = 4;
 const PAD_OF_DIAGONAL: f64 = 1.0 / 4096.0;
 
 struct Cluster {
-    lo: [f32; 3],
-    hi: [f32; 3],
+    bounds: Aabb,
     count: u32,
     /// The two merged clusters, or the triangle of a single one.
     parts: Result<(usize, usize), usize>,
 }
 
-impl Cluster {
-    /// Half the surface area of the box around both (the growth criterion needs no factor 2).
-    fn merged_area(&self, other: &Cluster) -> f64 {
-        let e: [f64; 3] =
-            std::array::from_fn(|a| self.hi[a].max(other.hi[a]) as f64 - self.lo[a].min(other.lo[a]) as f64);
-        e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
-    }
-
-    fn area(&self) -> f64 {
-        self.merged_area(self)
-    }
+/// Half the surface area of a box (the growth criterion needs no factor 2).
+fn area(b: &Aabb) -> f64 {
+    b.half_area() as f64
 }
 
 /// The triangles' leaf order (position → index in `tris`) and the tree over them; None when
-/// the scene is not small, or the tree would be deeper than the traversal's stack allows.
+/// the scene is not small.
 pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, Bvh8)> {
     if tris.is_empty() || tris.len() > MOST_TRIANGLES {
         return None;
@@ -59,10 +51,7 @@ pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, 
     let mut clusters: Vec<Cluster> = tris
         .iter()
         .enumerate()
-        .map(|(i, t)| {
-            let bounds = PaddedTriangle(*t).aabb();
-            Cluster { lo: bounds.min.to_array(), hi: bounds.max.to_array(), count: 1, parts: Err(i) }
-        })
+        .map(|(i, t)| Cluster { bounds: PaddedTriangle(*t).aabb(), count: 1, parts: Err(i) })
         .collect();
     let mut active: Vec<usize> = (0..clusters.len()).collect();
     while active.len() > 1 {
@@ -72,7 +61,7 @@ pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, 
         for i in 0..active.len() {
             for j in i + 1..active.len() {
                 let (a, b) = (&clusters[active[i]], &clusters[active[j]]);
-                let growth = a.merged_area(b) - a.area() - b.area();
+                let growth = area(&a.bounds.union(&b.bounds)) - area(&a.bounds) - area(&b.bounds);
                 if growth < best.0 {
                     best = (growth, i, j);
                 }
@@ -80,19 +69,13 @@ pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, 
         }
         let (_, i, j) = best;
         let (a, b) = (&clusters[active[i]], &clusters[active[j]]);
-        let merged = Cluster {
-            lo: std::array::from_fn(|k| a.lo[k].min(b.lo[k])),
-            hi: std::array::from_fn(|k| a.hi[k].max(b.hi[k])),
-            count: a.count + b.count,
-            parts: Ok((active[i], active[j])),
-        };
+        let merged =
+            Cluster { bounds: a.bounds.union(&b.bounds), count: a.count + b.count, parts: Ok((active[i], active[j])) };
         clusters.push(merged);
         active[i] = clusters.len() - 1;
         active.swap_remove(j);
     }
-    let (lo, hi) = (clusters[active[0]].lo, clusters[active[0]].hi);
-    let diagonal = (0..3).map(|a| (hi[a] as f64 - lo[a] as f64).powi(2)).sum::<f64>().sqrt();
-    let pad = diagonal * PAD_OF_DIAGONAL;
+    let pad = clusters[active[0]].bounds.diagonal().as_dvec3().length() * PAD_OF_DIAGONAL;
     let mut tree = Collapse { clusters: &clusters, pad, nodes: vec![], order: vec![] };
     let root = active[0];
     if clusters[root].count <= LEAF_MOST {
@@ -100,10 +83,6 @@ pub fn build(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Option<(Vec<usize>, 
         tree.node(&[root]);
     } else {
         tree.node_of(root);
-    }
-    let depth = tree.depth(0);
-    if depth >= 32 {
-        return None;
     }
     Some((tree.order, Bvh8::from_nodes(tree.nodes, triangle_bytes)))
 }
@@ -124,7 +103,7 @@ impl Collapse<'_> {
         while kids.len() < 8 {
             let open = (0..kids.len())
                 .filter(|&k| self.clusters[kids[k]].count > ATOM)
-                .max_by(|&x, &y| self.clusters[kids[x]].area().total_cmp(&self.clusters[kids[y]].area()));
+                .max_by(|&x, &y| area(&self.clusters[kids[x]].bounds).total_cmp(&area(&self.clusters[kids[y]].bounds)));
             let Some(k) = open else { break };
             let Ok((a, b)) = self.clusters[kids[k]].parts else { unreachable!("clusters above ATOM are merged") };
             kids[k] = a;
@@ -147,8 +126,8 @@ impl Collapse<'_> {
             } else {
                 self.node_of(k)
             };
-            let lo = cluster.lo.map(|x| ((x as f64 - self.pad) as f32).next_down());
-            let hi = cluster.hi.map(|x| ((x as f64 + self.pad) as f32).next_up());
+            let lo = cluster.bounds.min.to_array().map(|x| ((x as f64 - self.pad) as f32).next_down());
+            let hi = cluster.bounds.max.to_array().map(|x| ((x as f64 + self.pad) as f32).next_up());
             self.nodes[at].set_child(slot, child, lo, hi);
         }
         at as u32
@@ -162,10 +141,5 @@ impl Collapse<'_> {
             }
             Err(t) => self.order.push(t),
         }
-    }
-
-    /// Levels from node `n` down (a node alone is 1).
-    fn depth(&self, n: usize) -> usize {
-        1 + self.nodes[n].inner_children().map(|c| self.depth(c as usize)).max().unwrap_or(0)
     }
 }
