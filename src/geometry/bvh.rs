@@ -1,18 +1,16 @@
 //! The ray-casting tree: an 8-wide BVH with full-precision child boxes laid out for one AVX2
 //! slab test per node, traversed nearest child first with a compact stack.
 //!
-//! The tree's shape comes from obvhs's builder (PLOC, reinsertion, SAH leaf collapsing into an
-//! 8-wide compressed BVH), or for a small scene from `small_tree`, which fills the nodes itself
-//! (`Node8::set_child`); obvhs's quantised child boxes are expanded here into f32 boxes rounded
-//! outward, so that a node's eight children are tested at once with three FMAs per plane and a
-//! single cache-line-aligned load each, with no dequantisation per ray. The AVX2 test is chosen
+//! The nodes are filled (`Node8::set_child`) by `wide_tree`, which collapses obvhs's binary PLOC
+//! tree, or for a small scene by `small_tree`. Child boxes are f32, rounded outward, so that a
+//! node's eight children are tested at once with three FMAs per plane and a single
+//! cache-line-aligned load each, with no dequantisation per ray. The AVX2 test is chosen
 //! at run time; the portable one does the same arithmetic (fused multiply-adds, the same
 //! max/min order), so a scene gives the same bits on every machine.
 
 use std::mem::MaybeUninit;
 
 use glam::Vec3A;
-use obvhs::cwbvh::CwBvh;
 
 /// No child in a slot.
 const EMPTY: u32 = u32::MAX;
@@ -21,7 +19,7 @@ const LEAF: u32 = 1 << 31;
 /// The most triangles a tree can index in its leaves' 29-bit start.
 pub const MAX_TRIANGLES: usize = 1 << 29;
 /// Entries of the traversal stack: a tree of depth d pushes at most 7 per level below the root,
-/// and `Geometry::build` refuses trees of 32 levels or more (7·31 = 217).
+/// and `wide_tree` refuses trees of more than 31 levels (7·31 = 217).
 const STACK: usize = 224;
 
 /// Eight children: their boxes as planes [lo x, hi x, lo y, hi y, lo z, hi z] × 8 lanes (one
@@ -64,6 +62,7 @@ impl Node8 {
     }
 
     /// The indices of the inner nodes among the children.
+    #[cfg(test)]
     pub fn inner_children(&self) -> impl Iterator<Item = u32> + '_ {
         self.child.iter().copied().filter(|&c| c != EMPTY && c & LEAF == 0)
     }
@@ -76,55 +75,7 @@ pub struct Bvh8 {
     large: bool,
 }
 
-/// The world point p + scale·q of a quantised plane, rounded toward −∞ (`down`) or +∞.
-fn dequantise(p: f32, scale: f32, q: u8, down: bool) -> f32 {
-    let exact = p as f64 + scale as f64 * q as f64;
-    let f = exact as f32;
-    if down && f as f64 > exact {
-        f.next_down()
-    } else if !down && (f as f64) < exact {
-        f.next_up()
-    } else {
-        f
-    }
-}
-
 impl Bvh8 {
-    /// The same tree as `cw`, node for node (so its depth is `cw`'s), with each child box
-    /// expanded to f32 planes that contain the quantised box.
-    pub fn from_cwbvh(cw: &CwBvh, triangle_bytes: usize) -> Self {
-        let nodes = cw
-            .nodes
-            .iter()
-            .map(|n| {
-                let mut out = Node8::EMPTY;
-                let scale = n.e.map(|e| f32::from_bits((e as u32) << 23));
-                let p = n.p.to_array();
-                let q =
-                    [&n.child_min_x, &n.child_max_x, &n.child_min_y, &n.child_max_y, &n.child_min_z, &n.child_max_z];
-                for slot in 0..8 {
-                    let meta = n.child_meta[slot];
-                    if meta == 0 {
-                        continue;
-                    }
-                    out.child[slot] = if n.imask & (1 << slot) != 0 {
-                        n.child_base_idx + (n.imask as u32 & ((1 << slot) - 1)).count_ones()
-                    } else {
-                        let count = (meta >> 5).count_ones();
-                        let first = n.primitive_base_idx + (meta & 0x1f) as u32;
-                        Node8::leaf(first, count)
-                    };
-                    for plane in 0..6 {
-                        let axis = plane / 2;
-                        out.planes[plane][slot] = dequantise(p[axis], scale[axis], q[plane][slot], plane % 2 == 0);
-                    }
-                }
-                out
-            })
-            .collect::<Vec<Node8>>();
-        Bvh8::from_nodes(nodes, triangle_bytes)
-    }
-
     /// Each node's children, in slot order: a leaf's first triangle and count, or None for an
     /// inner node.
     #[cfg(test)]
@@ -133,7 +84,8 @@ impl Bvh8 {
         self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != EMPTY).map(|&c| kind(c)).collect()).collect()
     }
 
-    /// Levels of the tree (the root alone is 1). Iterative: a pathological tree can be deep.
+    /// Levels of the tree (the root alone is 1).
+    #[cfg(test)]
     pub fn depth(&self) -> usize {
         let mut deepest = 0;
         let mut todo = vec![(0usize, 1usize)];

@@ -1,6 +1,6 @@
-//! Triangles, the BVH (`bvh`: obvhs's 8-wide tree in our own full-precision nodes, or
-//! `small_tree`'s for a few dozen triangles; `leaf4`: a leaf's triangles in AVX2 lanes) and
-//! robust ray queries: a watertight ray–triangle test and ray origins offset by the hit point's
+//! Triangles, the BVH (`bvh`: 8-wide nodes with full-precision boxes, filled by `wide_tree` from
+//! obvhs's binary tree, or by `small_tree` for a few dozen triangles; `leaf4`: a leaf's
+//! triangles in AVX2 lanes) and robust ray queries: a watertight ray–triangle test and ray origins offset by the hit point's
 //! own floating-point error bound, so that scattering works at millimetre and kilometre scales
 //! alike with no fixed epsilon.
 
@@ -10,13 +10,14 @@ mod bvh;
 #[cfg(target_arch = "x86_64")]
 mod leaf4;
 mod small_tree;
+mod wide_tree;
 
 use bvh::Bvh8;
 /// The most triangles a scene's geometry can hold (the tree indexes them in 29 bits).
 pub use bvh::MAX_TRIANGLES;
 use glam::{Vec3A, Vec3Swizzles};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::builder::build_cwbvh;
+use obvhs::bvh2::builder::build_bvh2;
 use obvhs::{Boundable, BvhBuildParams};
 
 /// No primitive: used as "skip nothing".
@@ -89,8 +90,8 @@ pub struct Hit {
 /// tests are conservative. A planar face has a flat box, whose entry and exit distances coincide;
 /// rounding can then put entry after exit and cull the node, and a photon slips out through an
 /// edge. The padding is 2·f32::EPSILON in absolute terms and 1e-5 of the coordinates' magnitude
-/// in relative terms (far above the slab test's few-ulp rounding, and the CWBVH's quantisation
-/// only rounds boxes outward; far below any feature worth tracing).
+/// in relative terms (far above the slab test's few-ulp rounding; far below any feature worth
+/// tracing).
 struct PaddedTriangle([Vec3A; 3]);
 
 impl Boundable for PaddedTriangle {
@@ -196,22 +197,10 @@ impl Geometry {
         let triangle_bytes = tris.len() * std::mem::size_of::<PackedTriangle>();
         let (order, tree) = match small_tree::build(&tris, triangle_bytes) {
             Some(small) => small,
-            None => Self::obvhs_tree(&tris, triangle_bytes)?,
+            None => Self::large_tree(&tris, triangle_bytes)?,
         };
-        // The traversal's stack holds 7 children per level for 31 levels, so a deeper tree must
-        // not be traced. PLOC trees of real scenes are ~10 levels deep; only a pathological input
-        // gets there (a disk of 10^5 segments: 131 levels, its sliver triangles all overlapping
-        // at the centre). A small scene's tree cannot: each level below its root takes 7 or more
-        // of its 64 triangles.
-        let depth = tree.depth();
-        if depth >= 32 {
-            return Err(format!(
-                "the scene's {} triangles make a ray-tracing tree {depth} levels deep, and photon traces at most 31: \
-                 this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
-                 use fewer segments or a better-shaped mesh",
-                order.len()
-            ));
-        }
+        // `wide_tree` refuses trees deeper than the traversal's stack; a small scene's cannot be:
+        // each level below its root takes 7 or more of its 64 triangles.
         let verts: Vec<[Vec3A; 3]> = order.iter().map(|&i| tris[i]).collect();
         // Triangles of one surface are given together, so each one's local index counts up.
         let mut seen: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
@@ -235,9 +224,9 @@ impl Geometry {
         Ok(Geometry { tris, surface, local, bvh: Some(tree), simd: bvh::simd_available(), shading })
     }
 
-    /// obvhs's 8-wide CWBVH over `tris`, expanded to full-precision boxes (`bvh`) node for
-    /// node, and the triangles' leaf order.
-    fn obvhs_tree(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), String> {
+    /// obvhs's binary tree over `tris` collapsed into our 8-wide one (`wide_tree`), and the
+    /// triangles' leaf order.
+    fn large_tree(tris: &[[Vec3A; 3]], triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), String> {
         if tris.len() >= bvh::MAX_TRIANGLES {
             return Err(format!(
                 "the scene has {} triangles, and photon traces at most {}",
@@ -246,13 +235,10 @@ impl Geometry {
             ));
         }
         let padded: Vec<PaddedTriangle> = tris.iter().map(|t| PaddedTriangle(*t)).collect();
-        // Small leaves: with up to 8 triangles per leaf a Cornell ray made about 10 triangle
-        // tests; with 3 (the most a CWBVH leaf holds) it traces as fast as with 2, and faster
-        // than with 1.
-        let params = BvhBuildParams { max_prims_per_leaf: 3, ..BvhBuildParams::medium_build() };
-        let cw = build_cwbvh(&padded, params, &mut Duration::default());
-        let order = cw.primitive_indices.iter().map(|&i| i as usize).collect();
-        Ok((order, Bvh8::from_cwbvh(&cw, triangle_bytes)))
+        // One triangle a leaf: `wide_tree` makes the leaves itself.
+        let params = BvhBuildParams { max_prims_per_leaf: 1, ..BvhBuildParams::medium_build() };
+        let binary = build_bvh2(&padded, params, &mut Duration::default());
+        wide_tree::build(&binary, triangle_bytes).map_err(|levels| too_deep(tris.len(), levels))
     }
 
     /// Whether any triangle has vertex normals for smooth shading.
@@ -518,6 +504,15 @@ impl Geometry {
     }
 }
 
+/// Why a scene is refused whose tree would be `levels` deep or more (`wide_tree::MOST_LEVELS`).
+fn too_deep(triangles: usize, levels: usize) -> String {
+    format!(
+        "the scene's {triangles} triangles make a ray-tracing tree {levels} or more levels deep, and photon traces \
+         at most 31: this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
+         use fewer segments or a better-shaped mesh"
+    )
+}
+
 /// The lanes of a leaf's triangles `first..first + count` that a ray tests: all but `skip`.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -761,13 +756,15 @@ mod tests {
     /// equal t), and the AVX2 and portable node tests give the same bits.
     #[test]
     fn tree_matches_brute_force_and_both_node_tests_agree() {
-        // obvhs's tree (3012 triangles), and the small scenes' own (`small_tree`: 64), at
-        // scales from 1e-3 to 1e4 and 3e4 off the origin.
-        // obvhs's boxes are padded by 10⁻⁵ of their coordinates, so its tree is not held to
-        // rays from far away: one aimed at a corner of the box from 1000 box sizes off found
-        // the face beside the nearest one, an ulp of t farther (the nearest face's box culled by
-        // the slab test's rounding of t = 3000).
-        tree_matches_brute_force(3000, 1.0, Vec3A::ZERO, false);
+        // The large scenes' tree (`wide_tree`: 3012 triangles) and the small scenes' own
+        // (`small_tree`: 64), at scales from 1e-3 to 1e4 and 3e4 off the origin.
+        // The large tree's boxes are the triangles' padded by 10⁻⁵ of their coordinates, so it is
+        // not held to rays from far away: one aimed at a corner of the box from 1000 box sizes
+        // off found the face beside the nearest one, an ulp of t farther (the nearest face's box
+        // culled by the slab test's rounding of t = 3000). obvhs's quantised boxes did the same.
+        for (scale, offset) in [(1.0, 0.0), (1e-3, 0.0), (1e4, 0.0), (1.0, 3e4)] {
+            tree_matches_brute_force(3000, scale, Vec3A::splat(offset), false);
+        }
         const { assert!(52 + 12 == small_tree::MOST_TRIANGLES) };
         for (scale, offset) in [(1.0, 0.0), (1e-3, 0.0), (1e4, 0.0), (1.0, 3e4)] {
             tree_matches_brute_force(52, scale, Vec3A::splat(offset), true);
@@ -896,6 +893,54 @@ mod tests {
             let first = surfaces.next().unwrap();
             assert!(first >= 6 && surfaces.all(|s| s == first), "{shape:?}");
         }
+    }
+
+    /// The large scenes' tree (`wide_tree`) over a sphere of 20 480 triangles: every triangle in
+    /// exactly one leaf of at most 4, and the SAH programme fills the wide nodes (7.6 children
+    /// a node on average; a greedy collapse that opened the largest child left 4.2).
+    #[test]
+    fn wide_tree_leaves_hold_each_triangle_once_in_full_nodes() {
+        let mut tris: Vec<[Vec3A; 3]> = Vec::new();
+        let (rings, segments) = (80, 128);
+        let at = |i: usize, j: usize| {
+            let (theta, phi) =
+                (std::f32::consts::PI * i as f32 / rings as f32, std::f32::consts::TAU * j as f32 / segments as f32);
+            Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        };
+        for i in 0..rings {
+            for j in 0..segments {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                tris.push([a, b, c]);
+                tris.push([a, c, d]);
+            }
+        }
+        let n = tris.len();
+        let geo = Geometry::build(tris, vec![0; n]).unwrap();
+        let shape = geo.bvh.as_ref().unwrap().shape();
+        let mut seen = vec![0u32; n];
+        for &(first, count) in shape.iter().flatten().flatten() {
+            assert!((1..=4).contains(&count), "a leaf of {count}");
+            (first..first + count).for_each(|t| seen[t as usize] += 1);
+        }
+        assert!(seen.iter().all(|&k| k == 1), "a triangle in {} leaves", seen.iter().max().unwrap());
+        let children: usize = shape.iter().map(Vec::len).sum();
+        let fill = children as f64 / shape.len() as f64;
+        assert!(fill > 7.0, "{fill} children a node over {} nodes", shape.len());
+        assert!(geo.bvh.as_ref().unwrap().depth() <= wide_tree::MOST_LEVELS);
+    }
+
+    /// A disk of 3·10⁴ sliver triangles all meeting at its centre makes a tree too deep for the
+    /// traversal's stack: the scene is refused with a message, not traced into an overflow.
+    #[test]
+    fn a_tree_too_deep_to_trace_is_refused() {
+        let segments = 30_000;
+        let rim = |k: usize| {
+            let phi = std::f64::consts::TAU * k as f64 / segments as f64;
+            Vec3A::new(phi.cos() as f32, phi.sin() as f32, 0.0)
+        };
+        let tris: Vec<[Vec3A; 3]> = (0..segments).map(|k| [Vec3A::ZERO, rim(k), rim(k + 1)]).collect();
+        let Err(message) = Geometry::build(tris, vec![0; segments]) else { panic!("the disk's tree was traced") };
+        assert!(message.contains("levels deep") && message.contains("30000 triangles"), "{message}");
     }
 
     /// The AVX2 leaf lanes (`leaf4`) give the scalar test's bits: the same hit (t, triangle,

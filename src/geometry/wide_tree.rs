@@ -1,0 +1,154 @@
+//! The tree of a scene of more than a few dozen triangles: obvhs's binary tree (PLOC with
+//! reinsertion, one triangle per leaf) collapsed into 8-wide nodes by the SAH dynamic programme
+//! of Ylitie, Karras and Laine (2017, "Efficient incoherent ray traversal on GPUs through
+//! compressed wide BVHs", §3.1), the one obvhs's own CWBVH conversion runs. Here the child boxes
+//! are the binary tree's own, rounded outward to f32 once, where obvhs's conversion quantised
+//! them to 8 bits of their node (up to ¹⁄₂₅₅ of its size larger), and each node's subtree is laid
+//! out after it, so a ray's walk down one branch reads nearby memory.
+//!
+//! The programme: cost(n, i) is the least SAH cost of the binary subtree n given as at most i
+//! children of one wide node, with A(n) its box's half area,
+//!   cost(n, 1) = min(A(n)·C_TRIANGLE·count(n) as a leaf (count ≤ 4), A(n)·C_NODE + split(n, 8)),
+//!   cost(n, i) = min(cost(n, i − 1), split(n, i)),
+//!   split(n, j) = min over 1 ≤ k < j of cost(left, k) + cost(right, j − k).
+
+use obvhs::bvh2::Bvh2;
+
+use super::bvh::{Bvh8, Node8};
+
+/// The relative costs of visiting a wide node and of testing a triangle (the paper's values).
+const C_NODE: f32 = 1.0;
+const C_TRIANGLE: f32 = 0.3;
+/// The most triangles in a leaf (`leaf4`'s lanes).
+const LEAF_MOST: u32 = 4;
+/// The most levels of wide nodes a tree may have: the traversal's stack holds 7 children a level
+/// for 31 levels (`bvh::STACK`).
+pub const MOST_LEVELS: usize = 31;
+
+/// The triangles' leaf order (position → index given to obvhs) and the wide tree over
+/// `bvh2`, a tree of one primitive per leaf; Err(levels) for a tree that would be deeper than
+/// MOST_LEVELS. Real scenes' trees are ~10 levels deep; only a pathological input gets there
+/// (a disk of 3·10⁴ segments or more, its sliver triangles all overlapping at the centre).
+pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), usize> {
+    let nodes = &bvh2.nodes;
+    let area = |n: usize| nodes[n].aabb.half_area();
+    let children = |n: usize| {
+        let first = nodes[n].first_index as usize;
+        (nodes[n].prim_count == 0).then_some((first, first + 1))
+    };
+    let mut count = vec![0u32; nodes.len()];
+    let mut cost = vec![[f32::INFINITY; 8]; nodes.len()];
+    let mut leaf = vec![false; nodes.len()];
+    // Children before parents, without recursion (a binary tree can be deep).
+    let mut todo = vec![(0usize, false)];
+    while let Some((n, children_done)) = todo.pop() {
+        match children(n) {
+            None => {
+                // obvhs is asked for one triangle a leaf (`max_prims_per_leaf: 1`).
+                count[n] = nodes[n].prim_count;
+                leaf[n] = true;
+                cost[n] = [area(n) * C_TRIANGLE * count[n] as f32; 8];
+            }
+            Some((l, r)) if children_done => {
+                count[n] = count[l] + count[r];
+                let split =
+                    |j: usize| (1..j).map(|k| cost[l][k - 1] + cost[r][j - k - 1]).fold(f32::INFINITY, f32::min);
+                let as_leaf =
+                    if count[n] <= LEAF_MOST { area(n) * C_TRIANGLE * count[n] as f32 } else { f32::INFINITY };
+                let as_node = area(n) * C_NODE + split(8);
+                leaf[n] = as_leaf <= as_node;
+                let mut row = [as_leaf.min(as_node); 8];
+                for i in 2..=8 {
+                    row[i - 1] = row[i - 2].min(split(i));
+                }
+                cost[n] = row;
+            }
+            Some((l, r)) => todo.extend([(n, true), (l, false), (r, false)]),
+        }
+    }
+    let mut wide = Collapse {
+        bvh2,
+        count: &count,
+        cost: &cost,
+        leaf: &leaf,
+        nodes: Vec::new(),
+        order: Vec::with_capacity(bvh2.primitive_indices.len()),
+    };
+    let root_children = if leaf[0] { vec![0] } else { wide.split(0, 8) };
+    wide.node(&root_children, 1)?;
+    Ok((wide.order, Bvh8::from_nodes(wide.nodes, triangle_bytes)))
+}
+
+struct Collapse<'a> {
+    bvh2: &'a Bvh2,
+    count: &'a [u32],
+    cost: &'a [[f32; 8]],
+    leaf: &'a [bool],
+    nodes: Vec<Node8>,
+    order: Vec<usize>,
+}
+
+impl Collapse<'_> {
+    /// The binary nodes that inner node n is given as, at most j of them (j ≥ 2), as the
+    /// programme chose: its children's shares are found again from their cost rows.
+    fn split(&self, n: usize, j: usize) -> Vec<usize> {
+        let first = self.bvh2.nodes[n].first_index as usize;
+        let (l, r) = (first, first + 1);
+        let total = |k: usize| self.cost[l][k - 1] + self.cost[r][j - k - 1];
+        let k = (1..j).min_by(|&a, &b| total(a).total_cmp(&total(b))).unwrap_or(1);
+        let mut out = self.part(l, k);
+        out.extend(self.part(r, j - k));
+        out
+    }
+
+    /// Node n as at most i nodes: itself, or split into the fewest that reach its least cost.
+    /// Each step splits into fewer than before, so this recurses at most 8 deep.
+    fn part(&self, n: usize, i: usize) -> Vec<usize> {
+        let row = &self.cost[n];
+        match (1..=i).find(|&m| row[m - 1] == row[i - 1]) {
+            Some(m) if m > 1 => self.split(n, m),
+            _ => vec![n],
+        }
+    }
+
+    /// A wide node with the binary nodes `kids` as its children, those the programme made
+    /// leaves with their triangles (appended to the order), the rest as wide nodes of their own
+    /// laid out after it. Err(level) once the tree passes MOST_LEVELS.
+    fn node(&mut self, kids: &[usize], level: usize) -> Result<u32, usize> {
+        if level > MOST_LEVELS {
+            return Err(level);
+        }
+        let at = self.nodes.len();
+        self.nodes.push(Node8::EMPTY);
+        for (slot, &k) in kids.iter().enumerate() {
+            let child = if self.leaf[k] {
+                let first = self.order.len() as u32;
+                self.triangles_of(k);
+                Node8::leaf(first, self.count[k])
+            } else {
+                let grandchildren = self.split(k, 8);
+                self.node(&grandchildren, level + 1)?
+            };
+            // obvhs's boxes are the padded triangles' (`PaddedTriangle`); one more ulp outward
+            // each way keeps them conservative whatever their own rounding.
+            let b = &self.bvh2.nodes[k].aabb;
+            let (lo, hi) = (b.min.to_array().map(f32::next_down), b.max.to_array().map(f32::next_up));
+            self.nodes[at].set_child(slot, child, lo, hi);
+        }
+        Ok(at as u32)
+    }
+
+    /// Appends the triangles under node n (at most LEAF_MOST) in the binary tree's order.
+    fn triangles_of(&mut self, n: usize) {
+        let node = &self.bvh2.nodes[n];
+        if node.prim_count == 0 {
+            let first = node.first_index as usize;
+            self.triangles_of(first);
+            self.triangles_of(first + 1);
+        } else {
+            let at = node.first_index as usize;
+            let prims = &self.bvh2.primitive_indices[at..at + node.prim_count as usize];
+            self.order.extend(prims.iter().map(|&p| p as usize));
+        }
+    }
+}
