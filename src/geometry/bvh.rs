@@ -18,8 +18,8 @@ const EMPTY: u32 = u32::MAX;
 const LEAF: u32 = 1 << 31;
 /// The most triangles a tree can index in its leaves' 29-bit start.
 pub const MAX_TRIANGLES: usize = 1 << 29;
-/// Entries of the traversal stack: a tree of depth d pushes at most 7 per level below the root,
-/// and `wide_tree` refuses trees of more than 31 levels (7·31 = 217).
+/// Entries of the traversal stack: a walk keeps at most 7 per level above the one it is on and
+/// pushes up to 8 there, and `wide_tree` refuses trees of more than 31 levels (7·30 + 8 = 218).
 const STACK: usize = 224;
 
 /// Eight children: their boxes as planes [lo x, hi x, lo y, hi y, lo z, hi z] × 8 lanes (one

@@ -27,7 +27,7 @@ const LEAF_MOST: u32 = 4;
 /// is widened by this share of the scene's diagonal. The slab test's t errs by about an ulp of
 /// the ray origin's coordinates and two of the distance travelled (the roundings of 1/d, of o/d
 /// and of the fused multiply-add), so this covers rays from up to a thousand scene sizes away,
-/// as the quantisation of obvhs's CWBVH boxes (¹⁄₂₅₅ of their node's size) did.
+/// as the quantisation of obvhs's CWBVH boxes (up to ²⁄₂₅₅ of their node's size) did.
 const PAD_OF_DIAGONAL: f64 = 1.0 / 4096.0;
 
 struct Cluster {

@@ -3,11 +3,11 @@
 //! of Ylitie, Karras and Laine (2017, "Efficient incoherent ray traversal on GPUs through
 //! compressed wide BVHs", §3.1), the one obvhs's own CWBVH conversion runs. Here the child boxes
 //! are the binary tree's own, rounded outward to f32 once, where obvhs's conversion quantised
-//! them to 8 bits of their node (up to ¹⁄₂₅₅ of its size larger), and each node's subtree is laid
+//! them to 8 bits of their node (up to ²⁄₂₅₅ of its size larger), and each node's subtree is laid
 //! out after it, so a ray's walk down one branch reads nearby memory.
 //!
 //! The programme: cost(n, i) is the least SAH cost of the binary subtree n given as at most i
-//! children of one wide node, with A(n) its box's half area,
+//! children of one wide node, with A(n) its box's half area (relative to the root's),
 //!   cost(n, 1) = min(A(n)·C_TRIANGLE·count(n) as a leaf (count ≤ 4), A(n)·C_NODE + split(n, 8)),
 //!   cost(n, i) = min(cost(n, i − 1), split(n, i)),
 //!   split(n, j) = min over 1 ≤ k < j of cost(left, k) + cost(right, j − k).
@@ -31,7 +31,14 @@ pub const MOST_LEVELS: usize = 31;
 /// (a disk of 3·10⁴ segments or more, its sliver triangles all overlapping at the centre).
 pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), usize> {
     let nodes = &bvh2.nodes;
-    let area = |n: usize| nodes[n].aabb.half_area();
+    // Half areas relative to the root's, taken in f64: in f32 they overflow to ∞ for
+    // coordinates past 10¹⁹, and with every cost ∞ the programme would choose nothing.
+    let half_area = |n: usize| {
+        let d = (nodes[n].aabb.max - nodes[n].aabb.min).as_dvec3();
+        d.x * d.y + d.y * d.z + d.z * d.x
+    };
+    let root_area = Some(half_area(0)).filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
+    let area = |n: usize| (half_area(n) / root_area) as f32;
     let children = |n: usize| {
         let first = nodes[n].first_index as usize;
         (nodes[n].prim_count == 0).then_some((first, first + 1))
@@ -44,8 +51,10 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
     while let Some((n, children_done)) = todo.pop() {
         match children(n) {
             None => {
-                // obvhs is asked for one triangle a leaf (`max_prims_per_leaf: 1`).
+                // obvhs is asked for one triangle a leaf (`max_prims_per_leaf: 1`): its PLOC makes
+                // leaves of one and its reinsertion moves whole nodes.
                 count[n] = nodes[n].prim_count;
+                assert!(count[n] <= LEAF_MOST, "a binary leaf of {} triangles", count[n]);
                 leaf[n] = true;
                 cost[n] = [area(n) * C_TRIANGLE * count[n] as f32; 8];
             }
@@ -56,7 +65,9 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
                 let as_leaf =
                     if count[n] <= LEAF_MOST { area(n) * C_TRIANGLE * count[n] as f32 } else { f32::INFINITY };
                 let as_node = area(n) * C_NODE + split(8);
-                leaf[n] = as_leaf <= as_node;
+                // The count test too: were both costs ∞ (NaN coordinates), a large subtree must not
+                // become a leaf.
+                leaf[n] = count[n] <= LEAF_MOST && as_leaf <= as_node;
                 let mut row = [as_leaf.min(as_node); 8];
                 for i in 2..=8 {
                     row[i - 1] = row[i - 2].min(split(i));
@@ -92,6 +103,7 @@ impl Collapse<'_> {
     /// The binary nodes that inner node n is given as, at most j of them (j ≥ 2), as the
     /// programme chose: its children's shares are found again from their cost rows.
     fn split(&self, n: usize, j: usize) -> Vec<usize> {
+        debug_assert!(j >= 2 && self.bvh2.nodes[n].prim_count == 0);
         let first = self.bvh2.nodes[n].first_index as usize;
         let (l, r) = (first, first + 1);
         let total = |k: usize| self.cost[l][k - 1] + self.cost[r][j - k - 1];
@@ -129,8 +141,8 @@ impl Collapse<'_> {
                 let grandchildren = self.split(k, 8);
                 self.node(&grandchildren, level + 1)?
             };
-            // obvhs's boxes are the padded triangles' (`PaddedTriangle`); one more ulp outward
-            // each way keeps them conservative whatever their own rounding.
+            // obvhs's boxes are exact unions of the padded triangles' (`PaddedTriangle`); one
+            // more ulp outward each way is a margin beyond that padding, at no cost.
             let b = &self.bvh2.nodes[k].aabb;
             let (lo, hi) = (b.min.to_array().map(f32::next_down), b.max.to_array().map(f32::next_up));
             self.nodes[at].set_child(slot, child, lo, hi);
