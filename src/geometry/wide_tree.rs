@@ -65,8 +65,8 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
                 let as_leaf =
                     if count[n] <= LEAF_MOST { area(n) * C_TRIANGLE * count[n] as f32 } else { f32::INFINITY };
                 let as_node = area(n) * C_NODE + split(8);
-                // The count test too: were both costs ∞ (NaN coordinates), a large subtree must not
-                // become a leaf.
+                // The count test too, so that no pattern of costs (ties at ∞ before the areas
+                // were made relative) can make a subtree of more than 4 a leaf.
                 leaf[n] = count[n] <= LEAF_MOST && as_leaf <= as_node;
                 let mut row = [as_leaf.min(as_node); 8];
                 for i in 2..=8 {
