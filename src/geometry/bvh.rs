@@ -11,6 +11,7 @@
 use std::mem::MaybeUninit;
 
 use glam::Vec3A;
+use obvhs::aabb::Aabb;
 
 /// No child in a slot.
 const EMPTY: u32 = u32::MAX;
@@ -18,9 +19,13 @@ const EMPTY: u32 = u32::MAX;
 const LEAF: u32 = 1 << 31;
 /// The most triangles a tree can index in its leaves' 29-bit start.
 pub const MAX_TRIANGLES: usize = 1 << 29;
+/// The most levels a tree may have (the root alone is 1); `wide_tree` refuses deeper ones.
+pub const MOST_LEVELS: usize = 31;
 /// Entries of the traversal stack: a walk keeps at most 7 per level above the one it is on and
-/// pushes up to 8 there, and `wide_tree` refuses trees of more than 31 levels (7·30 + 8 = 218).
-const STACK: usize = 224;
+/// pushes up to 8 there.
+const STACK: usize = 7 * (MOST_LEVELS - 1) + 8;
+/// The most triangles in a leaf (the count's 2 bits; `leaf4`'s lanes).
+pub const LEAF_MOST: u32 = 4;
 
 /// Eight children: their boxes as planes [lo x, hi x, lo y, hi y, lo z, hi z] × 8 lanes (one
 /// 32-byte row per plane), and what each is (an inner node's index, a leaf, or `EMPTY`). 224 bytes,
@@ -48,7 +53,7 @@ impl Node8 {
 
     /// The child reference of a leaf of `count` (1..=4) triangles from `first`.
     pub fn leaf(first: u32, count: u32) -> u32 {
-        debug_assert!((1..=4).contains(&count));
+        debug_assert!((1..=LEAF_MOST).contains(&count));
         LEAF | first << 2 | (count - 1)
     }
 
@@ -59,6 +64,13 @@ impl Node8 {
             self.planes[2 * axis][slot] = lo[axis];
             self.planes[2 * axis + 1][slot] = hi[axis];
         }
+    }
+
+    /// Puts `child` in `slot` with the box `b` widened by `pad` and rounded outward to f32.
+    pub fn set_child_box(&mut self, slot: usize, child: u32, b: &Aabb, pad: f64) {
+        let lo = b.min.to_array().map(|x| ((x as f64 - pad) as f32).next_down());
+        let hi = b.max.to_array().map(|x| ((x as f64 + pad) as f32).next_up());
+        self.set_child(slot, child, lo, hi);
     }
 
     /// The indices of the inner nodes among the children.

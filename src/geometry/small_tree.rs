@@ -14,15 +14,13 @@ use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::Boundable;
 
-use super::bvh::{Bvh8, Node8};
+use super::bvh::{Bvh8, Node8, LEAF_MOST};
 use super::PaddedTriangle;
 
 /// Scenes of up to this many triangles get this tree (the exhaustive merge search is cubic).
 pub const MOST_TRIANGLES: usize = 64;
 /// Clusters of up to this many triangles are never opened: a quad stays one leaf.
 const ATOM: u32 = 2;
-/// The most triangles in a leaf (`leaf4`'s lanes).
-const LEAF_MOST: u32 = 4;
 /// Each box, over its triangles' padded bounds (`PaddedTriangle`: 10⁻⁵ of their coordinates),
 /// is widened by this share of the scene's diagonal. The slab test's t errs by about an ulp of
 /// the ray origin's coordinates and two of the distance travelled (the roundings of 1/d, of o/d
@@ -126,9 +124,7 @@ impl Collapse<'_> {
             } else {
                 self.node_of(k)
             };
-            let lo = cluster.bounds.min.to_array().map(|x| ((x as f64 - self.pad) as f32).next_down());
-            let hi = cluster.bounds.max.to_array().map(|x| ((x as f64 + self.pad) as f32).next_up());
-            self.nodes[at].set_child(slot, child, lo, hi);
+            self.nodes[at].set_child_box(slot, child, &cluster.bounds, self.pad);
         }
         at as u32
     }

@@ -14,16 +14,11 @@
 
 use obvhs::bvh2::Bvh2;
 
-use super::bvh::{Bvh8, Node8};
+use super::bvh::{Bvh8, Node8, LEAF_MOST, MOST_LEVELS};
 
 /// The relative costs of visiting a wide node and of testing a triangle (the paper's values).
 const C_NODE: f32 = 1.0;
 const C_TRIANGLE: f32 = 0.3;
-/// The most triangles in a leaf (`leaf4`'s lanes).
-const LEAF_MOST: u32 = 4;
-/// The most levels of wide nodes a tree may have: the traversal's stack holds 7 children a level
-/// for 31 levels (`bvh::STACK`).
-pub const MOST_LEVELS: usize = 31;
 
 /// The triangles' leaf order (position → index given to obvhs) and the wide tree over
 /// `bvh2`, a tree of one primitive per leaf; Err(levels) for a tree that would be deeper than
@@ -143,9 +138,7 @@ impl Collapse<'_> {
             };
             // obvhs's boxes are exact unions of the padded triangles' (`PaddedTriangle`); one
             // more ulp outward each way is a margin beyond that padding, at no cost.
-            let b = &self.bvh2.nodes[k].aabb;
-            let (lo, hi) = (b.min.to_array().map(f32::next_down), b.max.to_array().map(f32::next_up));
-            self.nodes[at].set_child(slot, child, lo, hi);
+            self.nodes[at].set_child_box(slot, child, &self.bvh2.nodes[k].aabb, 0.0);
         }
         Ok(at as u32)
     }
