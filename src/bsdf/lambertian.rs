@@ -69,7 +69,7 @@ impl<const N: usize> Lambertian<N> {
 
     /// The lobe with probability mean ρ : mean τ, then a cosine-weighted direction on its side;
     /// the lobe's factor f|cos|/(|cos|/π) is ρ or τ.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3A, n: Vec3A, s: &mut Sampler) -> Option<Sample<N>> {
         let a = self.mean_albedo();
         if !(a > 0.0) {

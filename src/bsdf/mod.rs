@@ -411,8 +411,18 @@ impl<'a, const N: usize> Bsdf<'a, N> {
 
     /// Samples `wi` from `wo`, drawing from `s` only what the model needs (a lobe choice, a
     /// direction). None when nothing can leave (an absorber, a zero density).
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, wo: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
+        // The commonest surface, a flat Lambertian one, inline in the caller's loop: out of
+        // line, the call passed the sampler and the sample through memory on every bounce.
+        if let (Model::Lambertian(m), None) = (&self.model, self.ng) {
+            return m.sample(wo, self.n, s);
+        }
+        self.sample_general(wo, mode, s)
+    }
+
+    #[inline(never)]
+    fn sample_general(&self, wo: Vec3A, mode: Mode, s: &mut Sampler) -> Option<Sample<N>> {
         let sampled = self.sample_model(wo, mode, s)?;
         if self.ng.is_none() {
             return Some(sampled);

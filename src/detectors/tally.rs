@@ -49,9 +49,10 @@ const DENSE_ROWS: usize = 16;
 pub struct HistoryScores {
     value: Vec<f64>,
     touched: Vec<u32>,
-    /// Few rows (a box's surfaces): `add` keeps no touched list, and `flush` folds every row (an
-    /// untouched row adds 0 to Σx and Σx², which changes no bit).
+    /// Few rows (a box's surfaces): `add` marks its row in `dense_touched` (a bit a row) instead
+    /// of pushing to a list, and `flush` folds the marked rows.
     dense: bool,
+    dense_touched: u32,
     /// Where a history's wavelength can change (fluorescence), each score times the luminous
     /// efficacy when it was added (`set_efficacy`); empty otherwise, and the history's one
     /// efficacy is applied at `flush_scaled`.
@@ -65,6 +66,7 @@ impl HistoryScores {
             value: vec![0.0; surfaces],
             touched: if surfaces <= DENSE_ROWS { Vec::new() } else { Vec::with_capacity(64) },
             dense: surfaces <= DENSE_ROWS,
+            dense_touched: 0,
             luminous: Vec::new(),
             efficacy: 0.0,
         }
@@ -97,6 +99,7 @@ impl HistoryScores {
         let v = &mut self.value[surface as usize];
         if self.dense {
             *v += x;
+            self.dense_touched |= 1 << surface;
             return;
         }
         if *v == 0.0 {
@@ -120,12 +123,31 @@ impl HistoryScores {
     #[inline]
     pub fn flush_scaled(&mut self, into: &mut [Moments], mut luminous: Option<(&mut [Moments], f64)>) {
         if self.dense {
-            for (s, v) in self.value.iter_mut().enumerate() {
-                into[s].add_history(*v);
-                if let Some((lum, k)) = luminous.as_mut() {
-                    lum[s].add_history(*v * *k);
+            // The marked rows only (an unmarked row holds 0, and adding 0 to Σx and Σx² changes
+            // no bit), the lumens decided once: every row, indexed, with the choice inside the
+            // loop, took ~250 instructions a history (7 % of the grey Cornell box's).
+            let rows = self.value.len();
+            let (into, value) = (&mut into[..rows], &mut self.value[..rows]);
+            let mut touched = std::mem::take(&mut self.dense_touched);
+            match luminous {
+                Some((lum, k)) => {
+                    let lum = &mut lum[..rows];
+                    while touched != 0 {
+                        let s = (touched.trailing_zeros() as usize).min(rows - 1);
+                        touched &= touched - 1;
+                        into[s].add_history(value[s]);
+                        lum[s].add_history(value[s] * k);
+                        value[s] = 0.0;
+                    }
                 }
-                *v = 0.0;
+                None => {
+                    while touched != 0 {
+                        let s = (touched.trailing_zeros() as usize).min(rows - 1);
+                        touched &= touched - 1;
+                        into[s].add_history(value[s]);
+                        value[s] = 0.0;
+                    }
+                }
             }
             return;
         }
