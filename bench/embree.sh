@@ -6,6 +6,7 @@
 #
 #   bash bench/embree.sh                  # 5 rounds, Cornell box and the 1.3 M-triangle sphere
 #   ROUNDS=9 SPHERE=0 bash bench/embree.sh
+#   LEVEL=5 bash bench/embree.sh          # the sphere subdivided 5 times (20 492 triangles), not 8
 #
 # Not part of CI. Installs libembree-dev (Debian) when it is missing and we are root. The
 # figures are CPU time per ray or per photon on one thread, which preemption by other machines'
@@ -23,6 +24,8 @@ ROUNDS=${ROUNDS:-5}
 SPHERE=${SPHERE:-1}
 RAYS_M=${RAYS_M:-2}          # millions of rays per raybench case
 PHOTONS=${PHOTONS:-2000000}  # photons per whole-loop run
+LEVEL=${LEVEL:-8}            # the sphere's subdivision level (8: 1 310 732 triangles in all)
+case $LEVEL in [0-9] | 10) ;; *) echo "bench/embree.sh: LEVEL must be 0-10" >&2; exit 2 ;; esac
 mkdir -p "$WORK"
 
 if ! [ -e /usr/include/embree3/rtcore.h ] || ! [ -x /usr/bin/time ]; then
@@ -33,9 +36,14 @@ if ! [ -e /usr/include/embree3/rtcore.h ] || ! [ -x /usr/bin/time ]; then
     exit 2
   fi
 fi
-g++ -O3 -march=native -std=c++17 "$SRC/raybench.cpp" -o "$WORK/raybench" -lembree3 -lpthread
-awk '/^static inline int bf_avx512/{print "__attribute__((target(\"avx512f\")))"}{print}' \
-  "$SRC/mini_ptracer.cpp" > "$WORK/mini_ptracer.cpp"
+# Copies of the reference programs with the sphere's level set to LEVEL (the originals build 8).
+sed "s/icosphere(8, {278, 160.5, 280}, 160)/icosphere($LEVEL, {278, 160.5, 280}, 160)/" "$SRC/raybench.cpp" \
+  > "$WORK/raybench.cpp"
+grep -q "icosphere($LEVEL, {278" "$WORK/raybench.cpp" || { echo "raybench level rewrite failed" >&2; exit 1; }
+g++ -O3 -march=native -std=c++17 "$WORK/raybench.cpp" -o "$WORK/raybench" -lembree3 -lpthread
+awk '/^static inline int bf_avx512/{print "__attribute__((target(\"avx512f\")))"}{print}' "$SRC/mini_ptracer.cpp" |
+  sed "s/icosphere(t, BLOCK1, 8, /icosphere(t, BLOCK1, $LEVEL, /" > "$WORK/mini_ptracer.cpp"
+grep -q "icosphere(t, BLOCK1, $LEVEL, " "$WORK/mini_ptracer.cpp" || { echo "mini_ptracer level rewrite failed" >&2; exit 1; }
 g++ -O3 -march=native -std=c++17 "$WORK/mini_ptracer.cpp" -o "$WORK/mini_ptracer" -lembree3 -lpthread
 cargo build --release --quiet --bin photon --example raybench
 PHOTON=$ROOT/target/release/photon
@@ -50,10 +58,10 @@ sed -e "s#file = \"#file = \"$ROOT/scenes/#" \
 grep -q "reflectance = 0.7355" "$WORK/cornell_grey.toml" || { echo "grey box rewrite failed" >&2; exit 1; }
 # The grey box with both blocks replaced by the 1.3 M-triangle sphere, as mini_ptracer's `sphere`
 # (and the throughput benchmark's million_triangles) has it.
-python3 - "$WORK/cornell_grey.toml" "$WORK/million_grey.toml" <<'PY'
+python3 - "$WORK/cornell_grey.toml" "$WORK/million_grey.toml" "$LEVEL" <<'PY'
 import re, sys
 t = open(sys.argv[1]).read()
-sphere = 'shape = { type = "sphere", center = [278, 160.5, 280], radius = 160, subdivisions = 8 }'
+sphere = 'shape = { type = "sphere", center = [278, 160.5, 280], radius = 160, subdivisions = %s }' % sys.argv[3]
 t, n1 = re.subn(r'name = "short_block"\nmaterial = "white"\nshape = \{ type = "mesh", file = "[^"]*" \}',
                 'name = "sphere"\nmaterial = "white"\n' + sphere, t)
 t, n2 = re.subn(r'\[\[surfaces\]\]\nname = "tall_block"\nmaterial = "white"\nshape = \{[^\n]*\}\n\n', "", t)
@@ -89,7 +97,7 @@ embree_rays() {  # scene
     /^brute force AVX2 8-wide closest +1 / {print "brute_avx2_closest_" s, $(NF-1)}' >> "$LOG"
 }
 photon_rays() {  # scene
-  "$RAYBENCH" "$1" "$RAYS_M" 1 | awk -v s="$1" '
+  LEVEL=$LEVEL "$RAYBENCH" "$1" "$RAYS_M" 1 | awk -v s="$1" '
     /^photon intersect/ {print "photon_closest_" s, $5}
     /^photon unoccluded/ {print "photon_shadow_" s, $5}' >> "$LOG"
 }

@@ -110,7 +110,7 @@ fn scene(which: &str) -> Vec<[DVec3; 3]> {
         load_obj(&mut t, &format!("{meshes}/cornell_short_block.obj"));
         load_obj(&mut t, &format!("{meshes}/cornell_tall_block.obj"));
     } else {
-        t.extend(icosphere(8, DVec3::new(278.0, 160.5, 280.0), 160.0));
+        t.extend(icosphere(sphere_level(), DVec3::new(278.0, 160.5, 280.0), 160.0));
     }
     t
 }
@@ -176,6 +176,22 @@ fn thread_cpu() -> Option<f64> {
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// The sphere's subdivision level: 8 (as the reference programs build it), or `LEVEL` from the
+/// environment, to compare a sphere that fits the caches with one that does not
+/// (bench/embree.sh passes the same level to Embree's programs).
+fn sphere_level() -> u32 {
+    match std::env::var("LEVEL") {
+        Ok(v) => match v.parse() {
+            Ok(level) if level <= 10 => level,
+            _ => {
+                eprintln!("raybench: LEVEL must be a whole number from 0 to 10, not {v:?}");
+                std::process::exit(2);
+            }
+        },
+        Err(_) => 8,
+    }
 }
 
 fn main() {
