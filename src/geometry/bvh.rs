@@ -315,10 +315,10 @@ impl RayPlanes {
     fn still_mask(&self, node: &Node8) -> u32 {
         let o = self.o.to_array();
         let mut mask = 0xff;
-        for a in 0..3 {
+        for (a, &oa) in o.iter().enumerate() {
             if self.still & (1 << a) != 0 {
                 for k in 0..8 {
-                    let inside = node.planes[2 * a][k] <= o[a] && node.planes[2 * a + 1][k] >= o[a];
+                    let inside = node.planes[2 * a][k] <= oa && node.planes[2 * a + 1][k] >= oa;
                     mask &= !((!inside as u32) << k);
                 }
             }

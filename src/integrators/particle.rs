@@ -103,13 +103,14 @@ impl Kernel<'_> {
     /// index-matched boundary (which splats look through at the photon's wavelength).
     pub fn uses_hero(&self) -> bool {
         let fx = &self.scene.effects;
+        let absorber_seen_through = fx.absorbing_media
+            && self.scene.surfaces.iter().any(|s| is_passable(&self.scene.materials[s.material].material));
         self.options.hero
             && fx.spectral
             && !fx.dispersion
             && !fx.volume_scattering
             && !fx.fluorescence
-            && !(fx.absorbing_media
-                && self.scene.surfaces.iter().any(|s| is_passable(&self.scene.materials[s.material].material)))
+            && !absorber_seen_through
             && self.camera.is_some()
             // Shading normals reweight each event apart from the lanes' terms.
             && !self.scene.geometry.has_shading_normals()

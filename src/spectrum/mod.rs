@@ -66,8 +66,8 @@ impl<const N: usize> std::ops::Add for Lanes<N> {
     #[inline]
     fn add(self, o: Lanes<N>) -> Lanes<N> {
         let mut sum = self.0;
-        for k in 0..N {
-            sum[k] += o.0[k];
+        for (s, x) in sum.iter_mut().zip(o.0) {
+            *s += x;
         }
         Lanes(sum)
     }
@@ -78,8 +78,8 @@ impl<const N: usize> std::ops::Mul for Lanes<N> {
     #[inline]
     fn mul(self, o: Lanes<N>) -> Lanes<N> {
         let mut product = self.0;
-        for k in 0..N {
-            product[k] *= o.0[k];
+        for (p, x) in product.iter_mut().zip(o.0) {
+            *p *= x;
         }
         Lanes(product)
     }
