@@ -13,8 +13,8 @@ use std::mem::MaybeUninit;
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
 
-/// No child in a slot.
-const EMPTY: u32 = u32::MAX;
+/// No child in a slot (`Node8::EMPTY` is a node with none).
+const NO_CHILD: u32 = u32::MAX;
 /// Marks a child reference as a leaf: `LEAF | first << 2 | (count − 1)`, count 1..=4.
 const LEAF: u32 = 1 << 31;
 /// The most triangles a tree can index in its leaves' 29-bit start.
@@ -28,7 +28,7 @@ const STACK: usize = 7 * (MOST_LEVELS - 1) + 8;
 pub const LEAF_MOST: u32 = 4;
 
 /// Eight children: their boxes as planes [lo x, hi x, lo y, hi y, lo z, hi z] × 8 lanes (one
-/// 32-byte row per plane), and what each is (an inner node's index, a leaf, or `EMPTY`). 224 bytes,
+/// 32-byte row per plane), and what each is (an inner node's index, a leaf, or `NO_CHILD`). 224 bytes,
 /// padded to four cache lines by the alignment.
 #[derive(Clone, Copy)]
 #[repr(C, align(64))]
@@ -48,7 +48,7 @@ impl Node8 {
             [f32::INFINITY; 8],
             [f32::NEG_INFINITY; 8],
         ],
-        child: [EMPTY; 8],
+        child: [NO_CHILD; 8],
     };
 
     /// The child reference of a leaf of `count` (1..=4) triangles from `first`.
@@ -76,7 +76,7 @@ impl Node8 {
     /// The indices of the inner nodes among the children.
     #[cfg(test)]
     pub fn inner_children(&self) -> impl Iterator<Item = u32> + '_ {
-        self.child.iter().copied().filter(|&c| c != EMPTY && c & LEAF == 0)
+        self.child.iter().copied().filter(|&c| c != NO_CHILD && c & LEAF == 0)
     }
 }
 
@@ -93,7 +93,7 @@ impl Bvh8 {
     #[cfg(test)]
     pub fn shape(&self) -> Vec<Vec<Option<(u32, u32)>>> {
         let kind = |c: u32| if c & LEAF != 0 { Some(((c & !LEAF) >> 2, (c & 3) + 1)) } else { None };
-        self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != EMPTY).map(|&c| kind(c)).collect()).collect()
+        self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != NO_CHILD).map(|&c| kind(c)).collect()).collect()
     }
 
     /// Levels of the tree (the root alone is 1).
