@@ -508,8 +508,9 @@ impl Geometry {
 fn too_deep(triangles: usize, levels: usize) -> String {
     format!(
         "the scene's {triangles} triangles make a ray-tracing tree {levels} or more levels deep, and photon traces \
-         at most 31: this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
-         use fewer segments or a better-shaped mesh"
+         at most {}: this comes from many long, thin triangles overlapping (a disk or fan of very many segments); \
+         use fewer segments or a better-shaped mesh",
+        bvh::MOST_LEVELS
     )
 }
 
@@ -916,10 +917,7 @@ mod tests {
         let n = tris.len();
         let geo = Geometry::build(tris, vec![0; n]).unwrap();
         let shape = geo.bvh.as_ref().unwrap().shape();
-        let mut seen = vec![0u32; n];
-        for &(first, count) in shape.iter().flatten().flatten() {
-            (first..first + count).for_each(|t| seen[t as usize] += 1);
-        }
+        let seen = leaves_holding_each_triangle(&geo);
         assert!(seen.iter().all(|&k| k == 1), "a triangle in {} leaves", seen.iter().max().unwrap());
         let children: usize = shape.iter().map(Vec::len).sum();
         let fill = children as f64 / shape.len() as f64;
@@ -942,11 +940,17 @@ mod tests {
             })
             .collect();
         let geo = Geometry::build(tris, (0..n as u32).collect()).unwrap();
-        let mut seen = vec![0u32; n];
+        let seen = leaves_holding_each_triangle(&geo);
+        assert!(seen.len() == n && seen.iter().all(|&k| k == 1), "{seen:?}");
+    }
+
+    /// For each triangle, how many of the tree's leaves hold it.
+    fn leaves_holding_each_triangle(geo: &Geometry) -> Vec<u32> {
+        let mut seen = vec![0u32; geo.len()];
         for &(first, count) in geo.bvh.as_ref().unwrap().shape().iter().flatten().flatten() {
             (first..first + count).for_each(|t| seen[t as usize] += 1);
         }
-        assert!(seen.iter().all(|&k| k == 1), "{seen:?}");
+        seen
     }
 
     /// A disk of 3·10⁴ sliver triangles all meeting at its centre makes a tree too deep for the

@@ -34,17 +34,13 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
     };
     let root_area = Some(half_area(0)).filter(|a| a.is_finite() && *a > 0.0).unwrap_or(1.0);
     let area = |n: usize| (half_area(n) / root_area) as f32;
-    let children = |n: usize| {
-        let first = nodes[n].first_index as usize;
-        (nodes[n].prim_count == 0).then_some((first, first + 1))
-    };
     let mut count = vec![0u32; nodes.len()];
     let mut cost = vec![[f32::INFINITY; 8]; nodes.len()];
     let mut leaf = vec![false; nodes.len()];
     // Children before parents, without recursion (a binary tree can be deep).
     let mut todo = vec![(0usize, false)];
     while let Some((n, children_done)) = todo.pop() {
-        match children(n) {
+        match children(bvh2, n) {
             None => {
                 // obvhs is asked for one triangle a leaf (`max_prims_per_leaf: 1`): its PLOC makes
                 // leaves of one and its reinsertion moves whole nodes.
@@ -55,8 +51,7 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
             }
             Some((l, r)) if children_done => {
                 count[n] = count[l] + count[r];
-                let split =
-                    |j: usize| (1..j).map(|k| cost[l][k - 1] + cost[r][j - k - 1]).fold(f32::INFINITY, f32::min);
+                let split = |j: usize| best_split(&cost, l, r, j).1;
                 let as_leaf =
                     if count[n] <= LEAF_MOST { area(n) * C_TRIANGLE * count[n] as f32 } else { f32::INFINITY };
                 let as_node = area(n) * C_NODE + split(8);
@@ -85,6 +80,26 @@ pub fn build(bvh2: &Bvh2, triangle_bytes: usize) -> Result<(Vec<usize>, Bvh8), u
     Ok((wide.order, Bvh8::from_nodes(wide.nodes, triangle_bytes)))
 }
 
+/// The two children of binary node n, or None for a leaf.
+fn children(bvh2: &Bvh2, n: usize) -> Option<(usize, usize)> {
+    let node = &bvh2.nodes[n];
+    let first = node.first_index as usize;
+    (node.prim_count == 0).then_some((first, first + 1))
+}
+
+/// The best share of j ≥ 2 children between binary children l and r: (k for l, j − k for r)
+/// with the least cost(l, k) + cost(r, j − k), the first such k, and that cost.
+fn best_split(cost: &[[f32; 8]], l: usize, r: usize, j: usize) -> (usize, f32) {
+    let mut best = (1, f32::INFINITY);
+    for k in 1..j {
+        let total = cost[l][k - 1] + cost[r][j - k - 1];
+        if total < best.1 {
+            best = (k, total);
+        }
+    }
+    best
+}
+
 struct Collapse<'a> {
     bvh2: &'a Bvh2,
     count: &'a [u32],
@@ -98,11 +113,8 @@ impl Collapse<'_> {
     /// The binary nodes that inner node n is given as, at most j of them (j ≥ 2), as the
     /// programme chose: its children's shares are found again from their cost rows.
     fn split(&self, n: usize, j: usize) -> Vec<usize> {
-        debug_assert!(j >= 2 && self.bvh2.nodes[n].prim_count == 0);
-        let first = self.bvh2.nodes[n].first_index as usize;
-        let (l, r) = (first, first + 1);
-        let total = |k: usize| self.cost[l][k - 1] + self.cost[r][j - k - 1];
-        let k = (1..j).min_by(|&a, &b| total(a).total_cmp(&total(b))).unwrap_or(1);
+        let (l, r) = children(self.bvh2, n).expect("only an inner binary node is split");
+        let (k, _) = best_split(self.cost, l, r, j);
         let mut out = self.part(l, k);
         out.extend(self.part(r, j - k));
         out
