@@ -76,7 +76,8 @@ impl<const N: usize> Lambertian<N> {
             return None;
         }
         let n_out = if wo.dot(n) > 0.0 { n } else { -n };
-        let reflect = s.uniform() * a < self.mean_rho;
+        // Without transmission the lobe is certain, and no number is drawn for it.
+        let reflect = self.mean_tau == 0.0 || s.uniform() * a < self.mean_rho;
         let (u1, u2) = (s.uniform_f32(), s.uniform_f32());
         let wi = cosine_hemisphere(if reflect { n_out } else { -n_out }, u1, u2);
         let pdf = self.pdf(wo, wi, n);

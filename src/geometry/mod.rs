@@ -104,20 +104,23 @@ impl Boundable for PaddedTriangle {
 }
 
 /// What a hit on a triangle reads, in one 64-byte cache line: its vertices, its unit normal,
-/// its surface and its unit tangent. In a million-triangle mesh every hit is a cache miss; one
-/// line per triangle makes it one miss, not one per table (vertices, normals, surfaces). The
-/// tangent's components fill the three words the vec3s leave over, so it costs no space.
+/// its surface, its least height and its unit tangent. In a million-triangle mesh every hit is a
+/// cache miss; one line per triangle makes it one miss, not one per table (vertices, normals,
+/// surfaces). The height and the tangent fill the three words the vec3s leave over: the tangent
+/// as its two components along the first edge ê₀ and along n × ê₀ (it lies in the plane).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 struct PackedTriangle {
     a: [f32; 3],
     surface: u32,
     b: [f32; 3],
-    tangent_x: f32,
+    /// The least of the three heights (twice the area over the longest edge), rounded down:
+    /// a point with barycentrics β lies at least min(β)·height from every edge (`spawn_from`).
+    least_height: f32,
     c: [f32; 3],
-    tangent_y: f32,
+    tangent_along_edge: f32,
     normal: [f32; 3],
-    tangent_z: f32,
+    tangent_across_edge: f32,
 }
 
 impl PackedTriangle {
@@ -130,14 +133,52 @@ impl PackedTriangle {
         } else {
             Vec3A::ZERO
         };
+        let (edge, across) = edge_frame(v[0], v[1], n);
+        let (along, across) = (t.dot(edge), t.dot(across));
+        let (along, across) = if along.is_finite() && across.is_finite() { (along, across) } else { (0.0, 0.0) };
         let [a, b, c] = v.map(|p| p.to_array());
         let normal = n.to_array();
-        PackedTriangle { a, surface, b, tangent_x: t.x, c, tangent_y: t.y, normal, tangent_z: t.z }
+        PackedTriangle {
+            a,
+            surface,
+            b,
+            least_height: least_height(v),
+            c,
+            tangent_along_edge: along,
+            normal,
+            tangent_across_edge: across,
+        }
     }
 
     #[inline(always)]
     fn verts(&self) -> [Vec3A; 3] {
         [Vec3A::from_array(self.a), Vec3A::from_array(self.b), Vec3A::from_array(self.c)]
+    }
+}
+
+/// The unit first edge ê₀ = (v₁ − v₀)/|v₁ − v₀| and n × ê₀: the tangent's frame in the plane,
+/// computed alike when the tangent is stored and when it is read.
+#[inline]
+fn edge_frame(v0: Vec3A, v1: Vec3A, n: Vec3A) -> (Vec3A, Vec3A) {
+    let edge = (v1 - v0).normalize();
+    (edge, n.cross(edge))
+}
+
+/// The triangle's least height, 2·area / longest edge, in f64 and rounded down to f32; 0 for a
+/// degenerate one (so that no hit on it counts as inside).
+fn least_height(v: &[Vec3A; 3]) -> f32 {
+    let [a, b, c] = v.map(|p| p.as_dvec3());
+    let twice_area = (b - a).cross(c - a).length();
+    let longest = (b - a).length().max((c - b).length()).max((a - c).length());
+    let h = twice_area / longest;
+    if !(h > 0.0 && h.is_finite()) {
+        return 0.0;
+    }
+    let rounded = h as f32;
+    if rounded as f64 > h {
+        rounded.next_down()
+    } else {
+        rounded
     }
 }
 
@@ -290,7 +331,13 @@ impl Geometry {
     #[inline(always)]
     pub fn tangent(&self, prim: usize) -> Vec3A {
         let t = &self.tris[prim];
-        Vec3A::new(t.tangent_x, t.tangent_y, t.tangent_z)
+        let (edge, across) = edge_frame(Vec3A::from_array(t.a), Vec3A::from_array(t.b), Vec3A::from_array(t.normal));
+        let tangent = edge * t.tangent_along_edge + across * t.tangent_across_edge;
+        if tangent.is_finite() {
+            tangent
+        } else {
+            Vec3A::ZERO
+        }
     }
 
     /// The surface that triangle `prim` belongs to.
@@ -316,7 +363,7 @@ impl Geometry {
             let Some(hit) = self.intersect(from, dir, f32::INFINITY, skip) else { break };
             crossings[self.surface_of(hit.prim as usize) as usize] += 1;
             let (p, err) = self.hit_point(&hit);
-            from = self.spawn(p, err, hit.prim, dir);
+            from = self.spawn_from(p, err, hit.prim, hit.b, dir);
             skip = hit.prim;
         }
         crossings
@@ -475,6 +522,7 @@ impl Geometry {
     /// behind the wall's plane and slip out of a closed room. So `p` is first pulled toward the
     /// triangle's centroid by 8 rounding bounds (a few 1e-6 of the coordinates), putting it
     /// inside the triangle again, then offset off the plane by `offset_ray_origin`.
+    /// `spawn_from` does the same for a point whose barycentrics are known, more cheaply.
     #[inline]
     pub fn spawn(&self, p: Vec3A, err: Vec3A, prim: u32, dir: Vec3A) -> Vec3A {
         let [a, b, c] = self.verts(prim as usize);
@@ -490,6 +538,20 @@ impl Geometry {
             (p, err)
         };
         offset_ray_origin(p, err, self.normal(prim as usize), dir)
+    }
+
+    /// As `spawn`, for the point `p` = Σ βᵢ vᵢ of primitive `prim` (barycentrics `b`, as
+    /// `hit_point` makes it). That point lies within its bound of Σ βᵢ vᵢ / Σ βᵢ, which lies
+    /// min(β)·(least height) or more from every edge: where that is over twice the pull (16
+    /// bounds), the pull could not bring the point further inside than it already is, and the
+    /// offset alone is taken. Most hits are such; this saves the centroid's arithmetic there.
+    #[inline]
+    pub fn spawn_from(&self, p: Vec3A, err: Vec3A, prim: u32, b: [f32; 3], dir: Vec3A) -> Vec3A {
+        let t = &self.tris[prim as usize];
+        if b[0].min(b[1]).min(b[2]) * t.least_height > 16.0 * err.max_element() {
+            return offset_ray_origin(p, err, Vec3A::from_array(t.normal), dir);
+        }
+        self.spawn(p, err, prim, dir)
     }
 
     /// Hit point from barycentrics with its absolute error bound (pbrt-v4 §6.8.5):
@@ -751,6 +813,92 @@ mod tests {
                 + intersect_triangle(o, d, f32::INFINITY, &b).is_some() as u32;
             assert!(hits >= 1, "ray at {s} slipped through the shared edge");
         }
+    }
+
+    /// A 3-4-5 triangle's least height is 2·6/5 = 2.4, rounded down; a degenerate one's is 0.
+    #[test]
+    fn least_height_is_twice_the_area_over_the_longest_edge() {
+        let h = least_height(&[Vec3A::ZERO, Vec3A::new(3.0, 0.0, 0.0), Vec3A::new(0.0, 4.0, 0.0)]);
+        assert!(h as f64 <= 2.4 && h as f64 > 2.4 * (1.0 - 1e-7), "{h}");
+        assert_eq!(least_height(&[Vec3A::ZERO, Vec3A::X, 2.0 * Vec3A::X]), 0.0);
+    }
+
+    /// The tangent comes back from its two in-plane components as the unit projection of the
+    /// direction given, at every scale; zero where that direction is the normal.
+    #[test]
+    fn tangent_is_kept_in_the_plane() {
+        use rand_xoshiro::rand_core::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let mut u = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
+        let (mut tris, mut tangents) = (Vec::new(), Vec::new());
+        for k in 0..300 {
+            let (scale, centre) = [(1e-3, 0.0), (1.0, 0.0), (1.0, 1e4)][k % 3];
+            let mut v = || Vec3A::new(u(), u(), u()) * scale + centre;
+            tris.push([v(), v(), v()]);
+            tangents.push(Vec3A::new(u(), u(), u()));
+        }
+        let n = tris.len();
+        let given: Vec<([Vec3A; 3], Vec3A)> = tris.iter().copied().zip(tangents.iter().copied()).collect();
+        let geo = Geometry::build_with_tangents(tris, (0..n as u32).collect(), tangents).unwrap();
+        for p in 0..n {
+            let (v, t) = given[geo.surface_of(p) as usize];
+            let normal = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+            let expected = (t - normal * normal.dot(t)).normalize();
+            assert!((geo.tangent(p) - expected).length() < 1e-5, "{} against {expected}", geo.tangent(p));
+        }
+        let flat = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
+        let geo = Geometry::build_with_tangents(vec![flat], vec![0], vec![Vec3A::Z]).unwrap();
+        assert_eq!(geo.tangent(0), Vec3A::ZERO);
+    }
+
+    /// Leaving a hit at any barycentrics, on an edge, a hair inside it or well inside, at scales
+    /// from 1e-3 to 3e4 off the origin, `spawn_from` puts the origin strictly on the side the ray
+    /// leaves by and over the triangle's inside (barycentrics of its projection all positive, in
+    /// f64): what keeps a ray from starting behind a wall that meets the edge. Where it takes the
+    /// offset alone, the point was already 16 bounds inside; elsewhere it is `spawn` exactly.
+    #[test]
+    fn spawned_origins_lie_over_the_inside_and_off_the_plane() {
+        use rand_xoshiro::rand_core::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(19);
+        let mut u = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        let (mut fast, mut pulled) = (0, 0);
+        for (scale, centre) in [(1e-3f32, 0.0f32), (1.0, 0.0), (1.0, 1e4), (1e3, -3e4)] {
+            let mut tris = Vec::new();
+            for _ in 0..200 {
+                let mut v = || (Vec3A::new(u(), u(), u()) - 0.5) * scale + centre;
+                tris.push([v(), v(), v()]);
+            }
+            let n = tris.len();
+            let geo = Geometry::build(tris, (0..n as u32).collect()).unwrap();
+            for prim in 0..n as u32 {
+                let v = geo.verts(prim as usize).map(|p| p.as_dvec3());
+                let normal = geo.normal(prim as usize);
+                for small in [0.0, 1e-7, 1e-5, 1e-3, 0.3] {
+                    let share = u();
+                    let mut b = [small, (1.0 - small) * share, (1.0 - small) * (1.0 - share)];
+                    b.rotate_left(prim as usize % 3);
+                    let (p, err) = geo.hit_point(&Hit { t: 0.0, prim, b });
+                    let dir = (Vec3A::new(u(), u(), u()) - 0.5).normalize();
+                    let origin = geo.spawn_from(p, err, prim, b, dir);
+                    if origin == offset_ray_origin(p, err, normal, dir) && origin != geo.spawn(p, err, prim, dir) {
+                        assert!(small > 0.0, "a point on an edge was not pulled");
+                        fast += 1;
+                    } else {
+                        assert_eq!(origin, geo.spawn(p, err, prim, dir));
+                        pulled += 1;
+                    }
+                    let o = origin.as_dvec3();
+                    let n = (v[1] - v[0]).cross(v[2] - v[0]);
+                    let side = (o - v[0]).dot(n) * dir.dot(normal) as f64;
+                    assert!(side > 0.0, "scale {scale}: origin on the plane or behind it");
+                    let area = |a: glam::DVec3, c: glam::DVec3| (c - a).cross(o - a).dot(n);
+                    let inside = [area(v[1], v[2]), area(v[2], v[0]), area(v[0], v[1])];
+                    assert!(inside.iter().all(|&w| w > 0.0), "scale {scale}, b {b:?}: origin over the outside");
+                }
+            }
+        }
+        // Both ways are tested: most interior points skip the pull, edge points never do.
+        assert!(fast > 1000 && pulled > 1000, "{fast} offset alone, {pulled} pulled");
     }
 
     /// The tree finds the brute-force closest hit of every ray (same triangle and t, or a tie at

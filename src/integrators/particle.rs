@@ -737,7 +737,7 @@ impl Kernel<'_> {
                         &self.scene.surface_outside,
                     );
                 }
-                origin = geo.spawn(p, err, hit.prim, new_dir);
+                origin = geo.spawn_from(p, err, hit.prim, hit.b, new_dir);
                 if DIELECTRIC {
                     // Along new_dir from the surface's plane to the spawned origin.
                     let along = new_dir.dot(n);
@@ -854,7 +854,7 @@ impl Hero {
         });
         Hero {
             lambda,
-            power: map_array(lambda, |l| emitter.spectral_power(birth.light, l)),
+            power: emitter.spectral_power(birth.light, &lambda),
             throughput: [1.0; 4],
             probability: [1.0; 4],
             technique_weight: [1.0; 4],

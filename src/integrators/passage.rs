@@ -68,7 +68,7 @@ impl Through<'_> {
             let n = geo.normal(h.prim as usize);
             medium = media::after_crossing(surface, n, dir, self.inside, self.outside);
             let (hp, err) = geo.hit_point(&h);
-            origin = geo.spawn(hp, err, h.prim, dir);
+            origin = geo.spawn_from(hp, err, h.prim, h.b, dir);
             if (target - origin).dot(dir) <= 0.0 {
                 // A boundary within the spawn offset of the target: the offset passed it.
                 stretch(medium, 0.0);

@@ -207,7 +207,8 @@ impl Emitter {
             _ => (lambda_nm, xyz),
         };
         let dir = self.direction_of(light, lp.axis, u[5] as f32, u[6] as f32);
-        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { geo.spawn(lp.point, lp.err, lp.prim, dir) };
+        let origin =
+            if lp.normal == Vec3A::ZERO { lp.point } else { geo.spawn_from(lp.point, lp.err, lp.prim, lp.b, dir) };
         Birth {
             light,
             point: lp.point,
@@ -258,10 +259,11 @@ impl Emitter {
         self.share_lanes::<SPECTRAL, N>(light, lambda) * (self.power_w(light) * pdf * self.position_pdf(light) / cos)
     }
 
-    /// Relative spectral power S(λ) of light `light` (the shape its wavelengths are drawn from).
+    /// Relative spectral power S(λ) of light `light` (the shape its wavelengths are drawn from)
+    /// at each of the lanes' wavelengths.
     #[inline]
-    pub fn spectral_power(&self, light: usize, lambda_nm: f64) -> f64 {
-        self.lights[light].spectrum_shape.eval(lambda_nm)
+    pub fn spectral_power<const N: usize>(&self, light: usize, lambda: &[f64; N]) -> [f64; N] {
+        Lanes::eval::<true>(&self.lights[light].spectrum_shape, lambda).0
     }
 }
 
@@ -273,6 +275,8 @@ pub struct LightPoint {
     /// Front normal of the triangle; zero for a point light.
     pub normal: Vec3A,
     pub prim: u32,
+    /// Its barycentrics on `prim` (`Geometry::spawn_from`); zero off any triangle.
+    pub b: [f32; 3],
     /// The axis its direction pdf is measured about (`direction_pdf`).
     pub axis: Vec3A,
 }
@@ -344,11 +348,16 @@ impl Emitter {
                 let b = uniform_triangle(u[1] as f32, u[2] as f32);
                 let (point, err) = geo.hit_point(&crate::geometry::Hit { t: 0.0, prim, b });
                 let normal = geo.normal(prim as usize);
-                LightPoint { point, err, normal, prim, axis: normal }
+                LightPoint { point, err, normal, prim, b, axis: normal }
             }
-            Origin::Point { position, axis } => {
-                LightPoint { point: *position, err: Vec3A::ZERO, normal: Vec3A::ZERO, prim: NO_PRIM, axis: *axis }
-            }
+            Origin::Point { position, axis } => LightPoint {
+                point: *position,
+                err: Vec3A::ZERO,
+                normal: Vec3A::ZERO,
+                prim: NO_PRIM,
+                b: [0.0; 3],
+                axis: *axis,
+            },
             // The ray picked by power, its direction as the axis a collimated beam leaves along.
             Origin::Rays { positions, directions, pick, .. } => {
                 let k = pick.sample(u[0]);
@@ -357,6 +366,7 @@ impl Emitter {
                     err: Vec3A::ZERO,
                     normal: Vec3A::ZERO,
                     prim: NO_PRIM,
+                    b: [0.0; 3],
                     axis: directions[k],
                 }
             }

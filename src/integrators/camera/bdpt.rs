@@ -233,7 +233,11 @@ impl ImageKernel<'_> {
         y0.medium = e.medium_at(light, lp.prim);
         y0.lambda = wl.lambda;
         path.push(y0);
-        let origin = if lp.normal == Vec3A::ZERO { lp.point } else { self.geo().spawn(lp.point, lp.err, lp.prim, dir) };
+        let origin = if lp.normal == Vec3A::ZERO {
+            lp.point
+        } else {
+            self.geo().spawn_from(lp.point, lp.err, lp.prim, lp.b, dir)
+        };
         self.random_walk::<SPECTRAL, DIELECTRIC>(
             Mode::Importance,
             path,
@@ -397,7 +401,7 @@ impl ImageKernel<'_> {
                 medium =
                     media::after_crossing(surface, n, new_dir, &self.scene.surface_inside, &self.scene.surface_outside);
             }
-            origin = geo.spawn(p, err, hit.prim, new_dir);
+            origin = geo.spawn_from(p, err, hit.prim, hit.b, new_dir);
             dir = new_dir;
             skip = hit.prim;
         }

@@ -441,7 +441,7 @@ impl<'a> ImageKernel<'a> {
         }
         let (inside, outside) = (&self.scene.surface_inside, &self.scene.surface_outside);
         let medium = crate::media::after_crossing(surface, n, dir, inside, outside);
-        Onward::Pass { origin: self.geo().spawn(p, err, hit.prim, dir), medium }
+        Onward::Pass { origin: self.geo().spawn_from(p, err, hit.prim, hit.b, dir), medium }
     }
 
     /// The surface `hit` lies on (what the segment to it cost is `fly`'s).

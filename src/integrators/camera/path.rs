@@ -181,7 +181,7 @@ impl ImageKernel<'_> {
                 medium =
                     media::after_crossing(surface, n, new_dir, &self.scene.surface_inside, &self.scene.surface_outside);
             }
-            origin = geo.spawn(p, err, hit.prim, new_dir);
+            origin = geo.spawn_from(p, err, hit.prim, hit.b, new_dir);
             dir = new_dir;
             skip = hit.prim;
         }
