@@ -418,7 +418,10 @@ impl<'a, const N: usize> Bsdf<'a, N> {
         if let (Model::Lambertian(m), None) = (&self.model, self.ng) {
             return m.sample(wo, self.n, s);
         }
-        self.sample_general(wo, mode, s)
+        // A copy for the call, made on this path only: were `self` passed, the caller would
+        // keep its whole Bsdf in memory on every bounce (26 stores), not in registers.
+        let general = *self;
+        general.sample_general(wo, mode, s)
     }
 
     #[inline(never)]
