@@ -25,7 +25,7 @@ use std::sync::Mutex;
 use glam::{DVec3, Vec3A};
 use ndarray::{Array2, Array3};
 
-use super::exact::{ExactSum, Overflow};
+use super::exact::{ExactSum, ExactSum4};
 use crate::scene::Camera;
 
 pub struct CameraModel {
@@ -291,16 +291,16 @@ const MERGE_GROUP: usize = 16;
 /// Pixels per tile of `Film::flush`: 2048 pixels' sums are 256 kB.
 const FLUSH_TILE: usize = 2048;
 
-/// A hint to bring `x`'s cache line in; it never faults and changes no result.
+/// A hint to bring the cache line at `p` in; it never faults and changes no result.
 #[inline(always)]
-fn prefetch<T>(x: &T) {
+fn prefetch(p: *const u8) {
     #[cfg(target_arch = "x86_64")]
     // SAFETY: a prefetch only hints the cache and never faults.
     unsafe {
-        std::arch::x86_64::_mm_prefetch(x as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0)
+        std::arch::x86_64::_mm_prefetch(p as *const i8, std::arch::x86_64::_MM_HINT_T0)
     };
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
+    let _ = p;
 }
 
 /// One transport batch's splats, in photon order: a list rather than a full-resolution buffer, so
@@ -513,28 +513,7 @@ pub struct Film {
 }
 
 /// One pixel's exact sums: X, Y, Z, and Y's square term.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct PixelSums(pub [ExactSum; 4]);
-
-impl PixelSums {
-    #[inline]
-    fn add(&mut self, v: [f64; 4]) {
-        for (s, x) in self.0.iter_mut().zip(v) {
-            s.add(x);
-        }
-    }
-
-    fn add_sums(&mut self, o: &PixelSums) -> Result<(), Overflow> {
-        for (s, x) in self.0.iter_mut().zip(&o.0) {
-            s.add_sum(x)?;
-        }
-        Ok(())
-    }
-
-    fn values(&self) -> [f64; 4] {
-        self.0.map(|s| s.value())
-    }
-}
+pub type PixelSums = ExactSum4;
 
 #[derive(Clone)]
 struct CameraPart {
@@ -715,6 +694,25 @@ impl Film {
         if self.pending.is_empty() {
             return;
         }
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            unsafe { self.add_pending_avx2() };
+            return;
+        }
+        self.add_pending(|sums, v| sums.add(v));
+    }
+
+    /// `add_pending` with the four sums of a pixel added at once (`ExactSum4::add_avx2`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn add_pending_avx2(&mut self) {
+        // SAFETY: this function runs only where the CPU has AVX2.
+        self.add_pending(|sums, v| unsafe { sums.add_avx2(v) });
+    }
+
+    #[inline(always)]
+    fn add_pending(&mut self, add: impl Fn(&mut PixelSums, [f64; 4])) {
         let mut at = vec![0usize; self.pending.len()];
         let pixels = self.pixels.len();
         for tile_end in (FLUSH_TILE..pixels + FLUSH_TILE).step_by(FLUSH_TILE) {
@@ -725,10 +723,11 @@ impl Film {
                     }
                     if let Some(&(ahead, _)) = list.get(*at + MERGE_PREFETCH_DISTANCE) {
                         // A pixel's four sums span two cache lines.
-                        prefetch(&self.pixels[ahead as usize].0[0]);
-                        prefetch(&self.pixels[ahead as usize].0[3]);
+                        let at = &self.pixels[ahead as usize] as *const PixelSums as *const u8;
+                        prefetch(at);
+                        prefetch(at.wrapping_add(64));
                     }
-                    self.pixels[p as usize].add(v);
+                    add(&mut self.pixels[p as usize], v);
                     *at += 1;
                 }
             }
@@ -844,7 +843,7 @@ impl Film {
         self.assert_flushed();
         let pixels = (self.width * self.height) as f64;
         let n = self.photons.max(1) as f64;
-        let total: f64 = self.pixels.iter().map(|p| p.0[1].value()).sum();
+        let total: f64 = self.pixels.iter().map(|p| p.lane(1).value()).sum();
         let var = self.variance_of_mean(total, self.image_y_sq_over_n.value());
         let (mut mean, mut var) = (total / n * emitted_w / pixels, var * (emitted_w / pixels).powi(2));
         if let Some(cam) = &self.camera {
@@ -935,7 +934,7 @@ mod tests {
         assert!(a.pixels == b.pixels && a.image_y_sq_over_n == b.image_y_sq_over_n);
         assert_eq!((a.photons, a.film_batches), (b.photons, b.film_batches));
         // Nearly all 5917 pixels were splatted, so every tile, the last partial one too, was added.
-        assert!(a.pixels.iter().filter(|p| p.0[1] != ExactSum::default()).count() > 5000);
+        assert!(a.pixels.iter().filter(|p| p.lane(1) != ExactSum::default()).count() > 5000);
     }
 
     /// `pixel_box` holds every pixel through which a camera ray meets the triangle: random

@@ -195,7 +195,7 @@ pub fn encode(scene: &Scene, r: &RunResult) -> Result<Vec<u8>, Error> {
 
 fn put_pixels(w: &mut Vec<u8>, pixels: &[PixelSums]) {
     for p in pixels {
-        for s in &p.0 {
+        for s in &p.lanes() {
             w.extend_from_slice(&s.to_bytes());
         }
     }
@@ -252,7 +252,9 @@ impl<'a> Reader<'a> {
     }
 
     fn pixels(&mut self, n: usize, what: &str) -> Result<Vec<PixelSums>, String> {
-        (0..n).map(|_| Ok(PixelSums([self.sum(what)?, self.sum(what)?, self.sum(what)?, self.sum(what)?]))).collect()
+        (0..n)
+            .map(|_| Ok(PixelSums::from_lanes([self.sum(what)?, self.sum(what)?, self.sum(what)?, self.sum(what)?])))
+            .collect()
     }
 }
 
