@@ -630,7 +630,9 @@ impl Kernel<'_> {
                 let tangent = || geo.tangent(prim);
                 // Smooth shading: the model's frame on the interpolated normal, sides on `n`.
                 let ns = if smooth { geo.shading_normal(prim, hit.b) } else { n };
-                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], ns, tangent).shaded(n);
+                let bsdf = Bsdf::<1>::new::<SPECTRAL>(material, prep, &[lambda], ns, tangent);
+                // Flat triangles (ns = n) skip the normals' comparison.
+                let bsdf = if smooth { bsdf.shaded(n) } else { bsdf };
                 let hero_bsdf = HERO.then(|| Bsdf::<4>::new::<true>(material, prep, &hero.lambda, ns, tangent));
                 if let (true, Some(cam), Some(film)) = (CAMERA, self.camera, film.as_deref_mut()) {
                     if bsdf.is_connectible() {
