@@ -202,7 +202,8 @@ impl Bvh8 {
         }
     }
 
-    /// Starts loading what the traversal reads next: the box rows of the hit inner children and
+    /// Starts loading what the traversal reads next: the hit inner children's four lines (three
+    /// of box rows, then the child references, read right after the test) and
     /// (through `prefetch_leaf`, given a leaf's first triangle) the hit leaves' triangles. In a
     /// large mesh those are cache misses; started now they overlap with the work on this node.
     #[inline(always)]
@@ -217,7 +218,7 @@ impl Bvh8 {
                 prefetch_leaf((c & !LEAF) >> 2);
             } else if let Some(n) = self.nodes.get(c as usize) {
                 let p = n as *const Node8 as *const u8;
-                for line in 0..3 {
+                for line in 0..4 {
                     prefetch(p.wrapping_add(64 * line));
                 }
             }
