@@ -135,9 +135,6 @@ enum Model<'a, const N: usize> {
 pub struct Prepared {
     coat: Option<plastic::Coat>,
     abg: Option<abg::Table>,
-    /// A Lambertian material's ρ and τ as grey transport evaluates them (`Lanes::eval::<false>`),
-    /// read at each hit without matching the spectra's kinds.
-    grey_lambertian: Option<(f64, f64)>,
 }
 
 impl Prepared {
@@ -163,17 +160,11 @@ impl Prepared {
         match material {
             Material::Plastic { diffuse_reflectance, ior, roughness } => {
                 let rho_max = diffuse_reflectance.min_max_over(range).1;
-                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, roughness)), ..Prepared::default() }
+                Prepared { coat: Some(plastic::Coat::new(*ior, rho_max, roughness)), abg: None }
             }
             Material::Mirror { scatter: Some(s), .. }
             | Material::Conductor { scatter: Some(s), .. }
-            | Material::Dielectric { scatter: Some(s), .. } => {
-                Prepared { abg: Some(abg::Table::new(s)), ..Prepared::default() }
-            }
-            Material::Lambertian { reflectance, transmittance } => {
-                let grey = |s: &crate::spectrum::Spectrum| Lanes::<1>::eval::<false>(s, &[f64::NAN]).0[0];
-                Prepared { grey_lambertian: Some((grey(reflectance), grey(transmittance))), ..Prepared::default() }
-            }
+            | Material::Dielectric { scatter: Some(s), .. } => Prepared { coat: None, abg: Some(abg::Table::new(s)) },
             _ => Prepared::default(),
         }
     }
@@ -223,13 +214,10 @@ impl<'a, const N: usize> Bsdf<'a, N> {
                 axis(roughness),
             )),
             Material::Absorber => Model::Absorber,
-            Material::Lambertian { reflectance, transmittance } => {
-                let (rho, tau) = match (SPECTRAL, prepared.grey_lambertian) {
-                    (false, Some((rho, tau))) => (Lanes::splat(rho), Lanes::splat(tau)),
-                    _ => (Lanes::eval::<SPECTRAL>(reflectance, lambda), Lanes::eval::<SPECTRAL>(transmittance, lambda)),
-                };
-                Model::Lambertian(lambertian::Lambertian::new(rho, tau))
-            }
+            Material::Lambertian { reflectance, transmittance } => Model::Lambertian(lambertian::Lambertian::new(
+                Lanes::eval::<SPECTRAL>(reflectance, lambda),
+                Lanes::eval::<SPECTRAL>(transmittance, lambda),
+            )),
             Material::Mirror { reflectance, scatter } => {
                 let reflectance = Lanes::eval::<SPECTRAL>(reflectance, lambda);
                 match scatter {
