@@ -303,7 +303,8 @@ pub struct RayPlanes {
 impl RayPlanes {
     #[inline(always)]
     fn new(o: Vec3A, d: Vec3A) -> Self {
-        let inv = [1.0 / d.x, 1.0 / d.y, 1.0 / d.z];
+        // One vector division, the scalar ones' bits.
+        let inv = (Vec3A::ONE / d).to_array();
         let still = d.cmpeq(Vec3A::ZERO).bitmask();
         let oa = o.to_array();
         let near = [0, 1, 2].map(|a| 2 * a + inv[a].is_sign_negative() as usize);

@@ -655,7 +655,10 @@ impl ShearedRay {
     pub fn new(o: Vec3A, d: Vec3A) -> Self {
         let kz = max_dim(d.abs());
         let pd = Self::permute_for(kz, d);
-        ShearedRay { o, d, kz, sx: -pd.x / pd.z, sy: -pd.y / pd.z, sz: 1.0 / pd.z }
+        // One vector division for the three (each lane rounds as the scalar division would):
+        // three dependent scalar ones delayed every ray's first triangle test.
+        let s = Vec3A::new(-pd.x, -pd.y, 1.0) / Vec3A::splat(pd.z);
+        ShearedRay { o, d, kz, sx: s.x, sy: s.y, sz: s.z }
     }
 
     /// (v[kx], v[ky], v[kz]) with kx, ky the two axes after kz, cyclically.
