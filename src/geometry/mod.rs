@@ -654,7 +654,10 @@ impl ShearedRay {
     #[inline]
     pub fn new(o: Vec3A, d: Vec3A) -> Self {
         let kz = max_dim(d.abs());
-        let pd = Self::permute_for(kz, d);
+        // Selected, not branched on: kz is random from ray to ray, and a branch on it here
+        // mispredicted about every other ray.
+        let (k0, k1) = (glam::BVec3A::splat(kz == 0), glam::BVec3A::splat(kz == 1));
+        let pd = Vec3A::select(k0, d.yzx(), Vec3A::select(k1, d.zxy(), d));
         // One vector division for the three (each lane rounds as the scalar division would):
         // three dependent scalar ones delayed every ray's first triangle test.
         let s = Vec3A::new(-pd.x, -pd.y, 1.0) / Vec3A::splat(pd.z);
