@@ -595,16 +595,53 @@ pub fn offset_ray_origin(p: Vec3A, err: Vec3A, n: Vec3A, dir: Vec3A) -> Vec3A {
     if dir.dot(n) < 0.0 {
         offset = -offset;
     }
-    let mut po = p + offset;
     // Round away from p so the offset survives the addition's own rounding.
+    step_away(p + offset, offset)
+}
+
+/// Each component of `x` one ulp further in the direction of `offset`'s: `next_up` where it is
+/// positive, `next_down` where negative, unchanged where ±0 or NaN.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn step_away(mut x: Vec3A, offset: Vec3A) -> Vec3A {
     for i in 0..3 {
         if offset[i] > 0.0 {
-            po[i] = po[i].next_up();
+            x[i] = x[i].next_up();
         } else if offset[i] < 0.0 {
-            po[i] = po[i].next_down();
+            x[i] = x[i].next_down();
         }
     }
-    po
+    x
+}
+
+/// The same bits without a branch (SSE2): which components an offset moves, and which way,
+/// depends on the surface hit, at random from bounce to bounce.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn step_away(x: Vec3A, offset: Vec3A) -> Vec3A {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is part of x86_64.
+    unsafe {
+        let (off, zero) = (__m128::from(offset), _mm_setzero_ps());
+        let (up, down) = (_mm_castps_si128(_mm_cmpgt_ps(off, zero)), _mm_castps_si128(_mm_cmplt_ps(off, zero)));
+        let bits = _mm_castps_si128(x.into());
+        let negative = _mm_srai_epi32::<31>(bits);
+        let magnitude = _mm_and_si128(bits, _mm_set1_epi32(0x7FFF_FFFF));
+        let moving = _mm_or_si128(up, down);
+        // The magnitude grows going up from a positive x or down from a negative one.
+        let grows = _mm_and_si128(moving, _mm_xor_si128(negative, up));
+        // Masks are 0 or −1: +1 where the magnitude grows, −1 where it shrinks.
+        let stepped = _mm_add_epi32(_mm_sub_epi32(bits, grows), _mm_andnot_si128(grows, moving));
+        // From ±0 the step is to the least subnormal of the direction's sign.
+        let is_zero = _mm_and_si128(_mm_cmpeq_epi32(magnitude, _mm_setzero_si128()), moving);
+        let from_zero = _mm_or_si128(_mm_and_si128(down, _mm_set1_epi32(i32::MIN)), _mm_set1_epi32(1));
+        let stepped = _mm_or_si128(_mm_andnot_si128(is_zero, stepped), _mm_and_si128(is_zero, from_zero));
+        // NaN stays, and so does an infinity stepping outward.
+        let inf = _mm_set1_epi32(0x7F80_0000);
+        let keep = _mm_or_si128(_mm_cmpgt_epi32(magnitude, inf), _mm_and_si128(_mm_cmpeq_epi32(magnitude, inf), grows));
+        let out = _mm_or_si128(_mm_andnot_si128(keep, stepped), _mm_and_si128(keep, bits));
+        Vec3A::from(_mm_castsi128_ps(out))
+    }
 }
 
 #[inline]
@@ -857,6 +894,59 @@ mod tests {
         let flat = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
         let geo = Geometry::build_with_tangents(vec![flat], vec![0], vec![Vec3A::Z]).unwrap();
         assert_eq!(geo.tangent(0), Vec3A::ZERO);
+    }
+
+    /// `step_away` moves each component as `next_up` / `next_down` would, bit for bit: random
+    /// values of every magnitude and sign, and zeros, subnormals, the largest finite values,
+    /// infinities and NaN, each with a positive, negative, zero and NaN offset.
+    #[test]
+    fn step_away_gives_next_up_and_next_down_bits() {
+        let reference = |x: f32, offset: f32| {
+            if offset > 0.0 {
+                x.next_up()
+            } else if offset < 0.0 {
+                x.next_down()
+            } else {
+                x
+            }
+        };
+        let special = [
+            0.0,
+            -0.0,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            1.0,
+            -1.0,
+        ];
+        let offsets = [1.0, -1.0, 0.0, -0.0, f32::NAN, f32::from_bits(1), -f32::from_bits(1)];
+        let mut rng = 0x9E37_79B9_7F4A_7C15u64;
+        let mut random = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            f32::from_bits((rng >> 32) as u32)
+        };
+        let mut xs: Vec<f32> = special.to_vec();
+        xs.extend((0..20_000).map(|_| random()));
+        for (k, &x) in xs.iter().enumerate() {
+            for &o in &offsets {
+                // Each lane with its own x and offset, the neighbours' chosen to differ.
+                let (x3, o3) = ([x, xs[(k + 1) % xs.len()], -x], [o, -o, offsets[k % offsets.len()]]);
+                let got = step_away(Vec3A::from_array(x3), Vec3A::from_array(o3)).to_array();
+                for i in 0..3 {
+                    let want = reference(x3[i], o3[i]);
+                    assert_eq!(got[i].to_bits(), want.to_bits(), "x {:e} offset {:e} lane {i}", x3[i], o3[i]);
+                }
+            }
+        }
     }
 
     /// Leaving a hit at any barycentrics, on an edge, a hair inside it or well inside, at scales
