@@ -395,9 +395,8 @@ fn integrating_sphere(ctx: &Ctx, out: &mut Vec<CaseResult>) -> Result<(), Error>
     let rho = 0.9;
     let sphere = icosphere(5);
     let dir = |t: &[DVec3; 3]| ((t[0] + t[1] + t[2]) / 3.0).normalize();
-    let (port, rest): (Vec<_>, Vec<_>) = sphere.iter().partition(|t| dir(t).z > 0.95);
-    let (patch, wall): (Vec<_>, Vec<_>) = rest.iter().partition(|t| dir(t).x > 0.97);
-    let (port, patch, wall): (Vec<[DVec3; 3]>, Vec<[DVec3; 3]>, Vec<[DVec3; 3]>) = (port, patch, wall);
+    let (port, rest): (Vec<[DVec3; 3]>, Vec<_>) = sphere.iter().partition(|t| dir(t).z > 0.95);
+    let (patch, wall): (Vec<[DVec3; 3]>, Vec<_>) = rest.into_iter().partition(|t| dir(t).x > 0.97);
     ctx.write("port.obj", &obj(&port))?;
     ctx.write("patch.obj", &obj(&patch))?;
     ctx.write("wall.obj", &obj(&wall))?;

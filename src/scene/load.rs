@@ -105,6 +105,11 @@ fn machine_max_scene_triangles() -> (u64, String) {
     }
 }
 
+/// Per light: a point light's position and axis, and a ray set's rays (None where not such).
+type PlacedLights = (Vec<Option<(DVec3, DVec3)>>, Vec<Option<crate::scene::rays::RaySet>>);
+/// An edge by its two end points' exact f32 bits.
+type EdgeKey = [[u32; 3]; 2];
+
 /// The scene's triangles counted against `max_scene_triangles`: first every shape of known
 /// size, then each mesh as its file is read.
 struct TriangleBudget {
@@ -1025,7 +1030,7 @@ impl<'s> Loader<'s> {
         shaped: &mut Vec<Shaped>,
         budget: &mut TriangleBudget,
         warnings: &mut Vec<String>,
-    ) -> R<(Vec<Option<(DVec3, DVec3)>>, Vec<Option<crate::scene::rays::RaySet>>)> {
+    ) -> R<PlacedLights> {
         let mut point_positions: Vec<Option<(DVec3, DVec3)>> = Vec::with_capacity(light_specs.len());
         let mut ray_sets: Vec<Option<crate::scene::rays::RaySet>> = vec![None; light_specs.len()];
         for (i, spec) in light_specs.iter_mut().enumerate() {
@@ -1574,7 +1579,8 @@ impl<'s> Loader<'s> {
         let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
         // Edges by their end points' exact f32 bits: each must be used twice, once each way.
         let mut first_prim = vec![u32::MAX; surfaces.len()];
-        let mut edges: HashMap<(usize, [[u32; 3]; 2]), (u32, i32)> = HashMap::new();
+        // (surface, the edge's two end points) → (its first triangle, uses one way minus the other).
+        let mut edges: HashMap<(usize, EdgeKey), (u32, i32)> = HashMap::new();
         for prim in 0..geo.len() {
             let s = geo.surface_of(prim) as usize;
             // An interface's triangle bounds both its dielectrics, the outer one reversed.
