@@ -33,7 +33,9 @@ impl Lanes {
     #[inline(always)]
     pub fn hit(&self, k: usize, t_max: f32, ray: &ShearedRay, tri: &PackedTriangle) -> Option<(f32, [f32; 3])> {
         let (det, t_scaled, t) = (self.det[k], self.t_scaled[k], self.t[k]);
-        if (det < 0.0 && t_scaled < t_max * det) || (det > 0.0 && t_scaled > t_max * det) || !(t < t_max) {
+        // One branch on the outcome, not one on the determinant's sign (the side the ray meets
+        // the triangle from).
+        if ((det < 0.0) & (t_scaled < t_max * det)) | ((det > 0.0) & (t_scaled > t_max * det)) | !(t < t_max) {
             return None;
         }
         if self.doubtful & (1 << k) != 0 {
