@@ -827,6 +827,26 @@ fn obj_bad_vertex() {
     );
 }
 
+/// A mesh that repeats one face (in any corner order) more than 32 times is refused before the
+/// tree is built: copies share one box, and a few hundred made a tree too deep to trace after a
+/// build whose time grew as their number squared. 32 copies still run.
+#[test]
+fn obj_face_repeated_too_often() {
+    let toml = mesh_scene("meshes/floor.obj");
+    let line = line_of(&toml, "floor.obj");
+    let faces = |n: usize| (0..n).map(|k| ["f 1 2 3\n", "f 3 1 2\n", "f 2 1 3\n"][k % 3]).collect::<String>();
+    let obj = |n: usize| format!("v 0 0 0\nv 0 0 1\nv 1 0 1\nv 1 0 0\nf 1 3 4\n{}", faces(n));
+    expect_bad(
+        "obj-repeated-face",
+        &toml,
+        &[("meshes/floor.obj", &obj(33))],
+        &[&format!("error: {{scene}}:{line}: `surfaces[0].shape`: 33 triangles of surface \"floor\" lie exactly on one another")],
+    );
+    let (dir, out) = photon("obj-repeated-32", Some(&toml), &[("meshes/floor.obj", &obj(32))], RUN);
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stderr));
+    fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn obj_face_index_out_of_range() {
     let toml = mesh_scene("meshes/floor.obj");

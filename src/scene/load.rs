@@ -105,6 +105,8 @@ fn machine_max_scene_triangles() -> (u64, String) {
     }
 }
 
+/// The most triangles with the same three corners a scene may hold (`check_stacked_triangles`).
+const MOST_STACKED: usize = 32;
 /// Per light: a point light's position and axis, and a ray set's rays (None where not such).
 type PlacedLights = (Vec<Option<(DVec3, DVec3)>>, Vec<Option<crate::scene::rays::RaySet>>);
 /// An edge by its two end points' exact f32 bits.
@@ -436,6 +438,7 @@ impl<'s> Loader<'s> {
             }
         }
 
+        self.check_stacked_triangles(&tris, &tri_surface, &surfaces, &surface_keys)?;
         self.check_point_lights_off_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces)?;
         self.warn_of_lights_flush_with_surfaces(&lights, &light_lines, &tris, &tri_surface, &surfaces, &mut warnings);
         self.check_ies_c0_planes(&lights, &tris, &tri_surface)?;
@@ -1386,6 +1389,63 @@ impl<'s> Loader<'s> {
 
     /// A point light on a surface would shoot half its rays from inside the surface's rounding
     /// band, where no hit can be resolved: they would leak through. Refuse it.
+    /// Refuses a scene where more than `MOST_STACKED` triangles lie exactly on one another (the
+    /// same three corners, in any order): a mesh that repeats a face. Copies share one box,
+    /// which no tree can split: a few hundred made the tree deeper than the traversal allows,
+    /// after a build whose time grew as the square of their number (20 000 copies: 10 s).
+    fn check_stacked_triangles(
+        &self,
+        tris: &[[Vec3A; 3]],
+        tri_surface: &[u32],
+        surfaces: &[Surface],
+        surface_keys: &[(String, usize)],
+    ) -> R<()> {
+        // The corners' bits, sorted (−0 taken as +0): one key for every order of one triangle.
+        let corners = |t: &[Vec3A; 3]| {
+            let mut c = t.map(|v| (v + Vec3A::ZERO).to_array().map(f32::to_bits));
+            c.sort_unstable();
+            c
+        };
+        // Sorted by a 64-bit hash of the key (16 bytes a triangle, not the key's 36); a run of
+        // equal hashes is then counted by its exact keys.
+        let hash = |c: &[[u32; 3]; 3]| {
+            c.iter().flatten().fold(0x9E37_79B9_7F4A_7C15u64, |h, &w| {
+                (h ^ w as u64).wrapping_mul(0xFF51_AFD7_ED55_8CCD).rotate_left(29)
+            })
+        };
+        let mut hashes: Vec<(u64, u32)> = tris.iter().enumerate().map(|(i, t)| (hash(&corners(t)), i as u32)).collect();
+        hashes.sort_unstable();
+        for run in hashes.chunk_by(|a, b| a.0 == b.0).filter(|run| run.len() > MOST_STACKED) {
+            let mut copies: HashMap<[[u32; 3]; 3], Vec<u32>> = HashMap::new();
+            for &(_, i) in run {
+                copies.entry(corners(&tris[i as usize])).or_default().push(i);
+            }
+            if let Some(stack) = copies.values().find(|stack| stack.len() > MOST_STACKED) {
+                let s = tri_surface[stack[0] as usize] as usize;
+                let mut names: Vec<&str> =
+                    stack.iter().map(|&i| surfaces[tri_surface[i as usize] as usize].name.as_str()).collect();
+                names.dedup();
+                let whose = if names.len() == 1 {
+                    format!("surface \"{}\"", names[0])
+                } else {
+                    format!("surfaces \"{}\" and \"{}\"", names[0], names[names.len() - 1])
+                };
+                return Err(InputError::new(
+                    self.src.file,
+                    &surface_keys[s].0,
+                    Some(surface_keys[s].1),
+                    format!(
+                        "{} triangles of {whose} lie exactly on one another (the same three corners: a face \
+                         repeated), and photon traces at most {MOST_STACKED} copies of one triangle; remove the \
+                         repeats",
+                        stack.len()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     fn check_point_lights_off_surfaces(
         &self,
         lights: &[Light],
