@@ -637,52 +637,15 @@ impl Film {
     /// taken from `b` and held until `MERGE_GROUP` batches are (`flush`); read the film through
     /// `flushed`, or after `flush`.
     pub fn merge(&mut self, b: &mut FilmBatch, photons: u64) {
-        // A camera integrator's samples, one a pixel in turn (its film's part covers every pixel).
-        if !b.samples.is_empty() && self.camera.as_ref().is_none_or(|c| c.listed.is_none()) {
-            let pixels = self.width * self.height;
-            let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
-            let value = |v: &[f32; 3]| {
-                let (x, y, z) = (v[0] as f64, v[1] as f64, v[2] as f64);
-                [x, y, z, y * y]
-            };
-            let pixel = |i: usize| ((b.first_sample + i as u64) % pixels as u64) as usize;
-            if b.samples.len() <= pixels {
-                // Each pixel has at most one sample in the batch: one exact addition each.
-                for (i, v) in b.samples.iter().enumerate() {
-                    cam.sums[pixel(i)].add(value(v));
-                    cam.count[pixel(i)] += 1;
-                }
-            } else {
-                // A film smaller than the batch: each pixel's samples summed in sample order
-                // first, so a sum still takes one value a batch (`exact::MAX_VALUES`).
-                let mut batch = vec![([0.0f64; 4], 0u32); pixels];
-                for (i, v) in b.samples.iter().enumerate() {
-                    let (acc, n) = &mut batch[pixel(i)];
-                    for (a, x) in acc.iter_mut().zip(value(v)) {
-                        *a += x;
-                    }
-                    *n += 1;
-                }
-                for (p, (acc, n)) in batch.into_iter().enumerate() {
-                    if n > 0 {
-                        cam.sums[p].add(acc);
-                        cam.count[p] += n;
-                    }
-                }
-            }
+        #[cfg(target_arch = "x86_64")]
+        if is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            unsafe { self.merge_camera_avx2(b) };
+        } else {
+            self.merge_camera(b, |sums, v| sums.add(v));
         }
-        // The light tracer's lamps in view, by entry of the listed part the film was made with.
-        if let Some(cam) = self.camera.as_mut().filter(|c| c.listed.is_some()) {
-            for &(k, sums, n) in &b.view {
-                let k = k as usize;
-                // A pixel keeps its first ~4·10⁹ samples (a decision that ignores their values,
-                // so its mean stays unbiased); its count never wraps.
-                if let Some(count) = cam.count.get(k).and_then(|c| c.checked_add(n)) {
-                    cam.sums[k].add(sums);
-                    cam.count[k] = count;
-                }
-            }
-        }
+        #[cfg(not(target_arch = "x86_64"))]
+        self.merge_camera(b, |sums, v| sums.add(v));
         let digest = match b.digest.take() {
             Some(d) => d,
             None => {
@@ -698,6 +661,66 @@ impl Film {
         self.pending.push(digest.pixels);
         if self.pending.len() >= MERGE_GROUP {
             self.flush();
+        }
+    }
+
+    /// `merge_camera` with a sample's four sums added at once (`ExactSum4::add_avx2`).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn merge_camera_avx2(&mut self, b: &FilmBatch) {
+        // SAFETY: this function runs only where the CPU has AVX2.
+        self.merge_camera(b, |sums, v| unsafe { sums.add_avx2(v) });
+    }
+
+    /// The camera part of `merge`: a camera integrator's samples and the light tracer's lamps in
+    /// view, each added to its pixel's exact sums by `add`.
+    #[inline(always)]
+    fn merge_camera(&mut self, b: &FilmBatch, add: impl Fn(&mut PixelSums, [f64; 4])) {
+        // A camera integrator's samples, one a pixel in turn (its film's part covers every pixel).
+        if !b.samples.is_empty() && self.camera.as_ref().is_none_or(|c| c.listed.is_none()) {
+            let pixels = self.width * self.height;
+            let cam = self.camera.get_or_insert_with(|| CameraPart::new(pixels));
+            let value = |v: &[f32; 3]| {
+                let (x, y, z) = (v[0] as f64, v[1] as f64, v[2] as f64);
+                [x, y, z, y * y]
+            };
+            let pixel = |i: usize| ((b.first_sample + i as u64) % pixels as u64) as usize;
+            if b.samples.len() <= pixels {
+                // Each pixel has at most one sample in the batch: one exact addition each.
+                for (i, v) in b.samples.iter().enumerate() {
+                    add(&mut cam.sums[pixel(i)], value(v));
+                    cam.count[pixel(i)] += 1;
+                }
+            } else {
+                // A film smaller than the batch: each pixel's samples summed in sample order
+                // first, so a sum still takes one value a batch (`exact::MAX_VALUES`).
+                let mut batch = vec![([0.0f64; 4], 0u32); pixels];
+                for (i, v) in b.samples.iter().enumerate() {
+                    let (acc, n) = &mut batch[pixel(i)];
+                    for (a, x) in acc.iter_mut().zip(value(v)) {
+                        *a += x;
+                    }
+                    *n += 1;
+                }
+                for (p, (acc, n)) in batch.into_iter().enumerate() {
+                    if n > 0 {
+                        add(&mut cam.sums[p], acc);
+                        cam.count[p] += n;
+                    }
+                }
+            }
+        }
+        // The light tracer's lamps in view, by entry of the listed part the film was made with.
+        if let Some(cam) = self.camera.as_mut().filter(|c| c.listed.is_some()) {
+            for &(k, sums, n) in &b.view {
+                let k = k as usize;
+                // A pixel keeps its first ~4·10⁹ samples (a decision that ignores their values,
+                // so its mean stays unbiased); its count never wraps.
+                if let Some(count) = cam.count.get(k).and_then(|c| c.checked_add(n)) {
+                    add(&mut cam.sums[k], sums);
+                    cam.count[k] = count;
+                }
+            }
         }
     }
 
