@@ -871,14 +871,13 @@ impl Hero {
         for k in 0..4 {
             let (factor, albedo, analog) = at(k);
             self.throughput[k] *= factor;
-            if EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT {
-                self.probability[k] *= if albedo > 0.0 { factor / albedo } else { 0.0 };
-                self.technique_weight[k] *= albedo;
-            } else {
-                // Survival with probability = albedo, then the lobe with factor/albedo: `analog`
-                // (= factor where the model samples exactly).
-                self.probability[k] *= analog;
-            }
+            // Selected, not branched on: lanes fall below the roulette weight at different
+            // events. Survival with probability = albedo, then the lobe with factor/albedo, is
+            // `analog` (= factor where the model samples exactly); × 1 changes no weight.
+            let expected = EXPECTED && self.technique_weight[k] >= ROULETTE_WEIGHT;
+            let kept = if albedo > 0.0 { factor / albedo } else { 0.0 };
+            self.probability[k] *= if expected { kept } else { analog };
+            self.technique_weight[k] *= if expected { albedo } else { 1.0 };
         }
     }
 
