@@ -1387,8 +1387,6 @@ impl<'s> Loader<'s> {
         Ok((lights, light_lines))
     }
 
-    /// A point light on a surface would shoot half its rays from inside the surface's rounding
-    /// band, where no hit can be resolved: they would leak through. Refuse it.
     /// Refuses a scene where more than `MOST_STACKED` triangles lie exactly on one another (the
     /// same three corners, in any order): a mesh that repeats a face. Copies share one box,
     /// which no tree can split: a few hundred made the tree deeper than the traversal allows,
@@ -1446,6 +1444,8 @@ impl<'s> Loader<'s> {
         Ok(())
     }
 
+    /// A point light on a surface would shoot half its rays from inside the surface's rounding
+    /// band, where no hit can be resolved: they would leak through. Refuse it.
     fn check_point_lights_off_surfaces(
         &self,
         lights: &[Light],
@@ -1639,7 +1639,7 @@ impl<'s> Loader<'s> {
         let fail = |s: usize, m: String| InputError::new(self.src.file, &keys[s].0, Some(keys[s].1), m);
         // Edges by their end points' exact f32 bits: each must be used twice, once each way.
         let mut first_prim = vec![u32::MAX; surfaces.len()];
-        // (surface, the edge's two end points) → (its first triangle, uses one way minus the other).
+        // (surface, the edge's two end points) → (its uses, uses one way minus the other).
         let mut edges: HashMap<(usize, EdgeKey), (u32, i32)> = HashMap::new();
         for prim in 0..geo.len() {
             let s = geo.surface_of(prim) as usize;
