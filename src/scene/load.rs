@@ -1423,10 +1423,11 @@ impl<'s> Loader<'s> {
                 let mut names: Vec<&str> =
                     stack.iter().map(|&i| surfaces[tri_surface[i as usize] as usize].name.as_str()).collect();
                 names.dedup();
-                let whose = if names.len() == 1 {
-                    format!("surface \"{}\"", names[0])
-                } else {
-                    format!("surfaces \"{}\" and \"{}\"", names[0], names[names.len() - 1])
+                let whose = match names.as_slice() {
+                    [one] => format!("surface \"{one}\""),
+                    [a, b] => format!("surfaces \"{a}\" and \"{b}\""),
+                    [a, .., z] => format!("{} surfaces from \"{a}\" to \"{z}\"", names.len()),
+                    [] => unreachable!("a stack holds more than MOST_STACKED triangles"),
                 };
                 return Err(InputError::new(
                     self.src.file,
