@@ -1141,9 +1141,10 @@ mod tests {
     }
 
     /// The large scenes' tree (`wide_tree`) over a sphere of 20 480 triangles: every triangle in
-    /// exactly one leaf, and the SAH programme fills the wide nodes (more than 7
-    /// children a node on average; on the 1.3 M-triangle icosphere 7.7, where a greedy collapse
-    /// that opened the largest child while a slot was free left 4.2).
+    /// exactly one leaf, and the SAH programme fills the wide nodes (more than 6 children a node
+    /// on average, here 6.6; on the 1.3 M-triangle icosphere 7.2, where a greedy collapse that
+    /// opened the largest child while a slot was free left 4.2) and its leaves (2.8 triangles a
+    /// leaf here; 1.8 with the paper's costs, which price a leaf by its triangles alone).
     #[test]
     fn wide_tree_leaves_hold_each_triangle_once_in_full_nodes() {
         let mut tris: Vec<[Vec3A; 3]> = Vec::new();
@@ -1167,7 +1168,12 @@ mod tests {
         assert!(seen.iter().all(|&k| k == 1), "a triangle in {} leaves", seen.iter().max().unwrap());
         let children: usize = shape.iter().map(Vec::len).sum();
         let fill = children as f64 / shape.len() as f64;
-        assert!(fill > 7.0, "{fill} children a node over {} nodes", shape.len());
+        // Leaves cost about a node's visit whatever their count (`wide_tree::C_LEAF`), so some
+        // nodes keep a slot free where one leaf of three beats three of one.
+        assert!(fill > 6.0, "{fill} children a node over {} nodes", shape.len());
+        let leaves = shape.iter().flatten().flatten().count();
+        let per_leaf = n as f64 / leaves as f64;
+        assert!(per_leaf > 2.0, "{per_leaf} triangles a leaf");
         assert!(geo.bvh.as_ref().unwrap().depth() <= bvh::MOST_LEVELS);
     }
 
