@@ -123,7 +123,7 @@ impl Bvh8 {
         origin: Vec3A,
         dir: Vec3A,
         t_max: f32,
-        prefetch_leaf: impl Fn(u32),
+        prefetch_leaf: impl Fn(u32, u32),
         mut leaf: impl FnMut(u32, u32, f32) -> f32,
     ) -> f32 {
         let ray = RayPlanes::new(origin, dir);
@@ -140,7 +140,7 @@ impl Bvh8 {
         &self,
         ray: &RayPlanes,
         t_max: f32,
-        prefetch_leaf: &impl Fn(u32),
+        prefetch_leaf: &impl Fn(u32, u32),
         leaf: &mut impl FnMut(u32, u32, f32) -> f32,
     ) -> f32 {
         // Uninitialised: zeroing 1.8 kB per ray cost 9 % of a Cornell ray. Entries below `sp`
@@ -204,10 +204,10 @@ impl Bvh8 {
 
     /// Starts loading what the traversal reads next: the hit inner children's four lines (three
     /// of box rows, then the child references, read right after the test) and
-    /// (through `prefetch_leaf`, given a leaf's first triangle) the hit leaves' triangles. In a
+    /// (through `prefetch_leaf`, given a leaf's first triangle and count) the hit leaves' triangles. In a
     /// large mesh those are cache misses; started now they overlap with the work on this node.
     #[inline(always)]
-    fn prefetch(&self, node: &Node8, mut mask: u32, prefetch_leaf: &impl Fn(u32)) {
+    fn prefetch(&self, node: &Node8, mut mask: u32, prefetch_leaf: &impl Fn(u32, u32)) {
         if !self.large {
             return;
         }
@@ -215,7 +215,7 @@ impl Bvh8 {
             let c = node.child[mask.trailing_zeros() as usize];
             mask &= mask - 1;
             if c & LEAF != 0 {
-                prefetch_leaf((c & !LEAF) >> 2);
+                prefetch_leaf((c & !LEAF) >> 2, (c & 3) + 1);
             } else if let Some(n) = self.nodes.get(c as usize) {
                 let p = n as *const Node8 as *const u8;
                 for line in 0..4 {
@@ -232,7 +232,7 @@ impl Bvh8 {
         origin: Vec3A,
         dir: Vec3A,
         t_max: f32,
-        prefetch_leaf: impl Fn(u32),
+        prefetch_leaf: impl Fn(u32, u32),
         mut leaf: impl FnMut(u32, u32, f32) -> bool,
     ) -> bool {
         let ray = RayPlanes::new(origin, dir);
@@ -248,7 +248,7 @@ impl Bvh8 {
         &self,
         ray: &RayPlanes,
         t_max: f32,
-        prefetch_leaf: &impl Fn(u32),
+        prefetch_leaf: &impl Fn(u32, u32),
         leaf: &mut impl FnMut(u32, u32, f32) -> bool,
     ) -> bool {
         let mut stack = [MaybeUninit::<u32>::uninit(); STACK];

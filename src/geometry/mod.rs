@@ -413,7 +413,7 @@ impl Geometry {
             origin,
             dir,
             t_max,
-            |first| self.prefetch_triangle(first),
+            |first, count| self.prefetch_leaf(first, count),
             #[inline(always)]
             |first, count, mut t_max| {
                 // A leaf's triangles in AVX2 lanes, the same bits (`leaf4`). Shadow rays keep the
@@ -480,7 +480,7 @@ impl Geometry {
             origin,
             dir,
             t_max,
-            |first| self.prefetch_triangle(first),
+            |first, count| self.prefetch_leaf(first, count),
             // As in `intersect_with`; a plain loop, as `Iterator::any` stayed out of line.
             #[inline(always)]
             |first, count, t_max| {
@@ -494,11 +494,13 @@ impl Geometry {
         )
     }
 
-    /// Starts loading triangle `prim`'s cache line (one line each).
+    /// Starts loading the cache lines of triangles `first..first + count` (one line each).
     #[inline(always)]
-    fn prefetch_triangle(&self, prim: u32) {
-        if let Some(t) = self.tris.get(prim as usize) {
-            bvh::prefetch(t as *const PackedTriangle as *const u8);
+    fn prefetch_leaf(&self, first: u32, count: u32) {
+        if let Some(leaf) = self.tris.get(first as usize..(first + count) as usize) {
+            for t in leaf {
+                bvh::prefetch(t as *const PackedTriangle as *const u8);
+            }
         }
     }
 
