@@ -1363,7 +1363,7 @@ mod tests {
                 o,
                 d,
                 f32::INFINITY,
-                |_| {},
+                |_, _| {},
                 |first, count, mut t_max| {
                     leaves += 1;
                     for id in first..first + count {
