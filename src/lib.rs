@@ -15,8 +15,13 @@ pub mod integrators;
 pub mod lights;
 pub mod media;
 pub mod output;
+pub mod pages;
 pub mod run;
 pub mod sampling;
 pub mod scene;
 pub mod spectrum;
 pub mod validate;
+
+/// Large allocations in huge pages (`pages`).
+#[global_allocator]
+static ALLOCATOR: pages::HugePages = pages::HugePages;

@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// Bottom to top. The README's "How it works" draws the same order.
 const LAYERS: &[&[&str]] = &[
-    &["error", "geometry"],
+    &["error", "pages", "geometry"],
     &["sampling"],
     &["spectrum"],
     &["scene"],

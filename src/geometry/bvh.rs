@@ -111,6 +111,9 @@ impl Bvh8 {
     /// A tree of `nodes`, the root first.
     pub fn from_nodes(nodes: Vec<Node8>, triangle_bytes: usize) -> Self {
         let large = nodes.len() * std::mem::size_of::<Node8>() + triangle_bytes > 1 << 20;
+        // Copied into one block of its size, advised as huge pages before it is written
+        // (`pages`): the vector grew by pushing, and its early pages stay 4 kB.
+        let nodes = if large { nodes.to_vec() } else { nodes };
         Bvh8 { nodes, large }
     }
 
