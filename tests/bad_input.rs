@@ -1142,7 +1142,7 @@ fn a_mesh_used_by_many_surfaces_counts_toward_the_triangle_limit() {
 
 #[test]
 fn too_many_triangles_are_refused_before_they_are_made() {
-    // 103 spheres of 20·4⁹ = 5 242 880 triangles: 540 M, past the 2²⁹ the tree can index on any
+    // 103 spheres of 20·4⁹ = 5 242 880 triangles: 540 M, past the 2²⁸ the tree can index on any
     // machine (and past the memory on most, which the refusal may name instead). Refused before
     // any is made, so the case takes no time and no memory.
     let mut toml = BASE.to_string();

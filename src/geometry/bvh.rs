@@ -15,17 +15,25 @@ use obvhs::aabb::Aabb;
 
 /// No child in a slot (`Node8::EMPTY` is a node with none).
 const NO_CHILD: u32 = u32::MAX;
-/// Marks a child reference as a leaf: `LEAF | first << 2 | (count − 1)`, count 1..=4.
+/// Marks a child reference as a leaf: `LEAF | first << COUNT_BITS | (count − 1)`.
 const LEAF: u32 = 1 << 31;
-/// The most triangles a tree can index in its leaves' 29-bit start.
-pub const MAX_TRIANGLES: usize = 1 << 29;
+/// The bits of a leaf reference that hold its count less one.
+const COUNT_BITS: u32 = 3;
+/// The most triangles a tree can index in its leaves' 28-bit start.
+pub const MAX_TRIANGLES: usize = 1 << (31 - COUNT_BITS);
 /// The most levels a tree may have (the root alone is 1); `wide_tree` refuses deeper ones.
 pub const MOST_LEVELS: usize = 31;
 /// Entries of the traversal stack: a walk keeps at most 7 per level above the one it is on and
 /// pushes up to 8 there.
 const STACK: usize = 7 * (MOST_LEVELS - 1) + 8;
-/// The most triangles in a leaf (the count's 2 bits; `leaf4`'s lanes).
-pub const LEAF_MOST: u32 = 4;
+/// The most triangles in a leaf (the count's bits; two passes of `leaf4`'s lanes).
+pub const LEAF_MOST: u32 = 1 << COUNT_BITS;
+
+/// A leaf reference's first triangle and count (`Node8::leaf`).
+#[inline(always)]
+fn leaf_parts(c: u32) -> (u32, u32) {
+    ((c & !LEAF) >> COUNT_BITS, (c & (LEAF_MOST - 1)) + 1)
+}
 
 /// Eight children: their boxes as planes [lo x, hi x, lo y, hi y, lo z, hi z] × 8 lanes (one
 /// 32-byte row per plane), and what each is (an inner node's index, a leaf, or `NO_CHILD`). 224 bytes,
@@ -51,10 +59,10 @@ impl Node8 {
         child: [NO_CHILD; 8],
     };
 
-    /// The child reference of a leaf of `count` (1..=4) triangles from `first`.
+    /// The child reference of a leaf of `count` (1..=LEAF_MOST) triangles from `first`.
     pub fn leaf(first: u32, count: u32) -> u32 {
         debug_assert!((1..=LEAF_MOST).contains(&count));
-        LEAF | first << 2 | (count - 1)
+        LEAF | first << COUNT_BITS | (count - 1)
     }
 
     /// Puts `child` (a node's index or a `leaf`) in `slot` with the box [lo, hi].
@@ -92,7 +100,7 @@ impl Bvh8 {
     /// inner node.
     #[cfg(test)]
     pub fn shape(&self) -> Vec<Vec<Option<(u32, u32)>>> {
-        let kind = |c: u32| if c & LEAF != 0 { Some(((c & !LEAF) >> 2, (c & 3) + 1)) } else { None };
+        let kind = |c: u32| if c & LEAF != 0 { Some(leaf_parts(c)) } else { None };
         self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != NO_CHILD).map(|&c| kind(c)).collect()).collect()
     }
 
@@ -188,7 +196,8 @@ impl Bvh8 {
                     continue 'walk;
                 }
             } else {
-                t_max = leaf((at & !LEAF) >> 2, (at & 3) + 1, t_max);
+                let (first, count) = leaf_parts(at);
+                t_max = leaf(first, count, t_max);
             }
             loop {
                 if sp == 0 {
@@ -218,7 +227,8 @@ impl Bvh8 {
             let c = node.child[mask.trailing_zeros() as usize];
             mask &= mask - 1;
             if c & LEAF != 0 {
-                prefetch_leaf((c & !LEAF) >> 2, (c & 3) + 1);
+                let (first, count) = leaf_parts(c);
+                prefetch_leaf(first, count);
             } else if let Some(n) = self.nodes.get(c as usize) {
                 let p = n as *const Node8 as *const u8;
                 for line in 0..4 {
@@ -272,8 +282,11 @@ impl Bvh8 {
                     }
                     continue;
                 }
-            } else if leaf((at & !LEAF) >> 2, (at & 3) + 1, t_max) {
-                return true;
+            } else {
+                let (first, count) = leaf_parts(at);
+                if leaf(first, count, t_max) {
+                    return true;
+                }
             }
             if sp == 0 {
                 return false;

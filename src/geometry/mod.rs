@@ -201,7 +201,7 @@ pub struct Geometry {
 impl Geometry {
     /// Builds the BVH and reorders triangles into its leaf order, so a BVH primitive id indexes
     /// the arrays directly.
-    /// Fails (with a message for the user) only on a tree too deep to trace, or more than 2^29
+    /// Fails (with a message for the user) only on a tree too deep to trace, or more than 2^28
     /// triangles.
     pub fn build(tris: Vec<[Vec3A; 3]>, surface: Vec<u32>) -> Result<Self, String> {
         let tangents = tris.iter().map(|t| t[1] - t[0]).collect();
@@ -420,18 +420,23 @@ impl Geometry {
                 // scalar loop, which stops at the first blocker: with lanes they ran slower.
                 #[cfg(target_arch = "x86_64")]
                 if T::LEAF_LANES {
-                    let valid = lanes_but(first, count, skip);
-                    // SAFETY: `LEAF_LANES` is the AVX2 node test's, run only under AVX2 and FMA;
-                    // the tree's leaves index `tris`.
-                    let lanes = unsafe { leaf4::test(&sheared, &self.tris, first, count, valid, t_max) };
-                    let mut candidates = lanes.candidates;
-                    while candidates != 0 {
-                        let k = candidates.trailing_zeros();
-                        candidates &= candidates - 1;
-                        let id = first + k;
-                        if let Some((t, b)) = lanes.hit(k as usize, t_max, &sheared, &self.tris[id as usize]) {
-                            t_max = t;
-                            best = Some(Hit { t, prim: id, b });
+                    let end = first + count;
+                    // Four lanes a pass, in triangle order.
+                    for first in (first..end).step_by(4) {
+                        let count = (end - first).min(4);
+                        let valid = lanes_but(first, count, skip);
+                        // SAFETY: `LEAF_LANES` is the AVX2 node test's, run only under AVX2 and
+                        // FMA; the tree's leaves index `tris`.
+                        let lanes = unsafe { leaf4::test(&sheared, &self.tris, first, count, valid, t_max) };
+                        let mut candidates = lanes.candidates;
+                        while candidates != 0 {
+                            let k = candidates.trailing_zeros();
+                            candidates &= candidates - 1;
+                            let id = first + k;
+                            if let Some((t, b)) = lanes.hit(k as usize, t_max, &sheared, &self.tris[id as usize]) {
+                                t_max = t;
+                                best = Some(Hit { t, prim: id, b });
+                            }
                         }
                     }
                     return t_max;

@@ -14,11 +14,13 @@ use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use obvhs::Boundable;
 
-use super::bvh::{Bvh8, Node8, LEAF_MOST};
+use super::bvh::{Bvh8, Node8};
 use super::PaddedTriangle;
 
 /// Scenes of up to this many triangles get this tree (the exhaustive merge search is cubic).
 pub const MOST_TRIANGLES: usize = 64;
+/// The most triangles in a leaf: one pass of `leaf4`'s lanes.
+const LEAF_MOST: u32 = 4;
 /// Clusters of up to this many triangles are never opened: a quad stays one leaf.
 const ATOM: u32 = 2;
 /// Each box, over its triangles' padded bounds (`PaddedTriangle`: 10⁻⁵ of their coordinates),

@@ -8,7 +8,7 @@
 //!
 //! The programme: cost(n, i) is the least SAH cost of the binary subtree n given as at most i
 //! children of one wide node, with A(n) its box's half area (relative to the root's),
-//!   cost(n, 1) = min(A(n)·(C_LEAF + C_TRIANGLE·count(n)) as a leaf (count ≤ 4),
+//!   cost(n, 1) = min(A(n)·(C_LEAF + C_TRIANGLE·count(n)) as a leaf (count ≤ LEAF_MOST),
 //!                    A(n)·C_NODE + split(n, 8)),
 //!   cost(n, i) = min(cost(n, i − 1), split(n, i)),
 //!   split(n, j) = min over 1 ≤ k < j of cost(left, k) + cost(right, j − k).
@@ -18,12 +18,13 @@ use obvhs::bvh2::Bvh2;
 use super::bvh::{Bvh8, Node8, LEAF_MOST, MOST_LEVELS};
 
 /// The relative costs of visiting a wide node, of visiting a leaf, and of each triangle in it.
-/// A leaf's triangles are tested in one pass of four lanes (`leaf4`) and their cache lines are
+/// A leaf's triangles are tested four at a time in lanes (`leaf4`) and their cache lines are
 /// fetched together, so a leaf costs about what a node does whatever its count; the paper's
 /// C_TRIANGLE = 0.3 a triangle and no cost a leaf, tuned for one triangle at a time, made 60 %
-/// of the 1.3 M-triangle sphere's leaves single triangles (1.5 a leaf, 131 k nodes). These
-/// values give 2.4 a leaf and 88 k nodes, and cast its rays 0.9× as long (raybench, C_LEAF
-/// 0.6–1.2 and C_TRIANGLE 0.02–0.05 measured alike within noise).
+/// of the 1.3 M-triangle sphere's leaves single triangles (1.5 a leaf, 131 k nodes); these give
+/// 2.4 a leaf with leaves of up to 4 (88 k nodes), more with up to 8, and a shallower tree
+/// (raybench, C_LEAF 0.6–1.2 and C_TRIANGLE 0.02–0.05 measured alike within noise; an extra
+/// cost for a leaf's second pass of lanes, 0.3, made no difference).
 const C_NODE: f32 = 1.0;
 const C_LEAF: f32 = 1.0;
 const C_TRIANGLE: f32 = 0.03;
