@@ -193,6 +193,8 @@ pub struct Geometry {
     bvh: Option<Bvh8>,
     /// Whether the node test runs in AVX2 (`bvh::simd_available`); both give the same bits.
     simd: bool,
+    /// Whether the tree's leaves may hold more than 4 triangles (`wide_tree`'s do).
+    big_leaves: bool,
     /// Each triangle's unit vertex normals for smooth shading, zero for a flat triangle; empty
     /// when no triangle has any (`shading_normal`).
     shading: Vec<[Vec3A; 3]>,
@@ -232,13 +234,14 @@ impl Geometry {
                 local: vec![],
                 bvh: None,
                 simd: false,
+                big_leaves: false,
                 shading: vec![],
             });
         }
         let triangle_bytes = tris.len() * std::mem::size_of::<PackedTriangle>();
-        let (order, tree) = match small_tree::build(&tris, triangle_bytes) {
-            Some(small) => small,
-            None => Self::large_tree(&tris, triangle_bytes)?,
+        let ((order, tree), big_leaves) = match small_tree::build(&tris, triangle_bytes) {
+            Some(small) => (small, false),
+            None => (Self::large_tree(&tris, triangle_bytes)?, true),
         };
         // `wide_tree` refuses trees deeper than the traversal's stack; a small scene's cannot be:
         // each level below its root takes 7 or more of its 64 triangles.
@@ -262,7 +265,7 @@ impl Geometry {
             .map(|((v, &s), &i)| PackedTriangle::new(v, s, tangents[i]))
             .collect();
         let shading = if shading.is_empty() { shading } else { order.iter().map(|&i| shading[i]).collect() };
-        Ok(Geometry { tris, surface, local, bvh: Some(tree), simd: bvh::simd_available(), shading })
+        Ok(Geometry { tris, surface, local, bvh: Some(tree), simd: bvh::simd_available(), big_leaves, shading })
     }
 
     /// obvhs's binary tree over `tris` collapsed into our 8-wide one (`wide_tree`), and the
@@ -379,10 +382,16 @@ impl Geometry {
             // SAFETY: `simd` is set only where the CPU has AVX2 and FMA; `hit` is written
             // whole when the call returns true.
             return unsafe {
-                self.intersect_avx2(origin, dir, t_max, skip, hit.as_mut_ptr()).then(|| hit.assume_init())
+                let out = hit.as_mut_ptr();
+                let found = if self.big_leaves {
+                    self.intersect_avx2::<true>(origin, dir, t_max, skip, out)
+                } else {
+                    self.intersect_avx2::<false>(origin, dir, t_max, skip, out)
+                };
+                found.then(|| hit.assume_init())
             };
         }
-        self.intersect_with::<bvh::Portable>(origin, dir, t_max, skip)
+        self.intersect_with::<bvh::Portable, true>(origin, dir, t_max, skip)
     }
 
     /// The closest hit written to `out` (true), or none (false). Returned as an `Option<Hit>`,
@@ -391,9 +400,16 @@ impl Geometry {
     /// loop); one 16-byte store of t, prim, b₀, b₁ forwards to any load inside it.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn intersect_avx2(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32, out: *mut Hit) -> bool {
+    unsafe fn intersect_avx2<const BIG_LEAVES: bool>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        t_max: f32,
+        skip: u32,
+        out: *mut Hit,
+    ) -> bool {
         use std::arch::x86_64::{_mm_setr_ps, _mm_storeu_ps};
-        let Some(h) = self.intersect_with::<bvh::Avx2>(origin, dir, t_max, skip) else { return false };
+        let Some(h) = self.intersect_with::<bvh::Avx2, BIG_LEAVES>(origin, dir, t_max, skip) else { return false };
         // SAFETY: `out` is valid for a Hit, whose repr(C) layout starts with t, prim, b.
         unsafe {
             _mm_storeu_ps(out.cast::<f32>(), _mm_setr_ps(h.t, f32::from_bits(h.prim), h.b[0], h.b[1]));
@@ -403,7 +419,13 @@ impl Geometry {
     }
 
     #[inline(always)]
-    fn intersect_with<T: bvh::NodeTest>(&self, origin: Vec3A, dir: Vec3A, t_max: f32, skip: u32) -> Option<Hit> {
+    fn intersect_with<T: bvh::NodeTest, const BIG_LEAVES: bool>(
+        &self,
+        origin: Vec3A,
+        dir: Vec3A,
+        t_max: f32,
+        skip: u32,
+    ) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
         let sheared = ShearedRay::new(origin, dir);
         let mut best: Option<Hit> = None;
@@ -424,8 +446,10 @@ impl Geometry {
                     // the tree's leaves index `tris`.
                     unsafe {
                         t_max = self.leaf_lanes(&sheared, first, count.min(4), skip, t_max, &mut best);
-                        // A large scene's leaf of more than 4 takes a second pass, in order.
-                        if count > 4 {
+                        // A large scene's leaf of more than 4 takes a second pass, in order. Only
+                        // its trees have such leaves; compiled in for the small ones too, the
+                        // pass (never taken) cost their photons 4 % (grey Cornell box).
+                        if BIG_LEAVES && count > 4 {
                             t_max = self.leaf_lanes_after_four(&sheared, first + 4, count - 4, skip, t_max, &mut best);
                         }
                     }
@@ -480,9 +504,8 @@ impl Geometry {
         t_max
     }
 
-    /// `leaf_lanes` out of line, for a leaf's triangles after its first four: inlined as a
-    /// second pass, it cost the small scenes' rays (whose leaves never pass four) 1.5 % more
-    /// instructions a photon in the code around it.
+    /// `leaf_lanes` out of line, for a leaf's triangles after its first four (the sphere's
+    /// cast measured 0.96× against the pass inlined).
     ///
     /// # Safety
     /// As `leaf_lanes`.
