@@ -215,8 +215,8 @@ impl Bvh8 {
     }
 
     /// Starts loading what the traversal reads next: the hit inner children's four lines (three
-    /// of box rows, then the child references, read right after the test) and
-    /// (through `prefetch_leaf`, given a leaf's first triangle and count) the hit leaves' triangles. In a
+    /// of box rows, then the child references, read right after the test) and (through
+    /// `prefetch_leaf`, given a leaf's first triangle and count) the hit leaves' triangles. In a
     /// large mesh those are cache misses; started now they overlap with the work on this node.
     #[inline(always)]
     fn prefetch(&self, node: &Node8, mut mask: u32, prefetch_leaf: &impl Fn(u32, u32)) {

@@ -442,6 +442,7 @@ impl Geometry {
                 // scalar loop, which stops at the first blocker: with lanes they ran slower.
                 #[cfg(target_arch = "x86_64")]
                 if T::LEAF_LANES {
+                    debug_assert!(BIG_LEAVES || count <= 4, "a leaf of {count} in a small scene's tree");
                     // SAFETY: `LEAF_LANES` is the AVX2 node test's, run only under AVX2 and FMA;
                     // the tree's leaves index `tris`.
                     unsafe {
