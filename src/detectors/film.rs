@@ -429,11 +429,15 @@ fn keep_pixel_lists(lists: &mut Vec<PixelList>) {
         lists.clear();
         return;
     };
-    for mut list in lists.drain(..) {
-        if spare.len() < SPARE_PIXEL_LISTS_KEPT {
-            list.clear();
-            spare.push(list);
-        }
+    for list in lists.drain(..) {
+        keep_pixel_list(&mut spare, list);
+    }
+}
+
+fn keep_pixel_list(spare: &mut Vec<PixelList>, mut list: PixelList) {
+    if spare.len() < SPARE_PIXEL_LISTS_KEPT {
+        list.clear();
+        spare.push(list);
     }
 }
 
@@ -857,16 +861,9 @@ impl Film {
         Some(film)
     }
 
-    /// Between-batch variance of a mean: with per-batch sums S_b over n_b photons (N in all, K
-    /// batches) and m = ΣS_b/N, the per-photon variance is Σ n_b (m_b − m)²/(K − 1) =
-    /// (Σ S_b²/n_b − N m²)/(K − 1), and the mean's variance is that over N.
+    /// `variance_of_mean` over this film's photons and film batches.
     fn variance_of_mean(&self, sum: f64, sq_over_n: f64) -> f64 {
-        let (n, k) = (self.photons as f64, self.film_batches as f64);
-        if self.film_batches < 2 {
-            return 0.0;
-        }
-        let m = sum / n;
-        ((sq_over_n - n * m * m) / (k - 1.0)).max(0.0) / n
+        variance_of_mean(sum, sq_over_n, self.photons, self.film_batches)
     }
 
     pub fn film_batches(&self) -> u64 {
@@ -933,6 +930,67 @@ impl Film {
     }
 }
 
+/// Between-batch variance of a mean: with per-batch sums S_b over n_b photons (N in all, K
+/// batches) and m = ΣS_b/N, the per-photon variance is Σ n_b (m_b − m)²/(K − 1) =
+/// (Σ S_b²/n_b − N m²)/(K − 1), and the mean's variance is that over N.
+fn variance_of_mean(sum: f64, sq_over_n: f64, photons: u64, film_batches: u64) -> f64 {
+    let (n, k) = (photons as f64, film_batches as f64);
+    if film_batches < 2 {
+        return 0.0;
+    }
+    let m = sum / n;
+    ((sq_over_n - n * m * m) / (k - 1.0)).max(0.0) / n
+}
+
+/// The light-traced image's typical relative pixel error (`Image::pixel_rel_error` of a film's
+/// image without a camera part), from Y's two sums a pixel in plain f64: all the estimator pilot
+/// needs of its image. A film's exact sums and its finished image cost the pilot two 32 MB films
+/// at 512², and most of its time. Batches are added in the caller's fixed order, so the figure
+/// depends on them only.
+pub struct PixelNoise {
+    /// Per pixel: Y's sum and its Σ_b S_b²/n_b.
+    y: Vec<[f64; 2]>,
+    photons: u64,
+    film_batches: u64,
+}
+
+impl PixelNoise {
+    pub fn new(width: usize, height: usize) -> Self {
+        PixelNoise { y: vec![[0.0; 2]; width * height], photons: 0, film_batches: 0 }
+    }
+
+    /// Adds one transport batch of `photons` photons (its light-traced splats).
+    pub fn add(&mut self, b: &mut FilmBatch, photons: u64) {
+        if b.digest.is_none() {
+            b.digest(photons);
+        }
+        let Some(mut digest) = b.digest.take() else { return };
+        for &(p, v) in &digest.pixels {
+            if let Some(s) = self.y.get_mut(p as usize) {
+                s[0] += v[1];
+                s[1] += v[3];
+            }
+        }
+        self.photons += photons;
+        self.film_batches += digest.film_batches;
+        if let Ok(mut spare) = SPARE_PIXEL_LISTS.lock() {
+            keep_pixel_list(&mut spare, std::mem::take(&mut digest.pixels));
+        }
+    }
+
+    /// sqrt(mean over pixels of Y's variance) / mean Y, per unit emitted power; NaN without light.
+    pub fn rel_error(&self) -> f64 {
+        let n = self.photons.max(1) as f64;
+        let (mut y, mut var) = (0.0, 0.0);
+        for &[sum, sq_over_n] in &self.y {
+            y += sum / n;
+            var += variance_of_mean(sum, sq_over_n, self.photons, self.film_batches);
+        }
+        let pixels = self.y.len() as f64;
+        (var / pixels).sqrt() / (y / pixels)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -948,6 +1006,23 @@ mod tests {
             }
         }
         b
+    }
+
+    /// The pilot's pixel noise from Y's plain sums is the film's image's `pixel_rel_error`, to
+    /// the image's f32 rounding (the two sum the same values in other orders and precisions).
+    #[test]
+    fn pixel_noise_is_the_images_pixel_error() {
+        let (width, height) = (37, 23);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let (mut film, mut noise) = (Film::new(width, height), PixelNoise::new(width, height));
+        for _ in 0..40 {
+            let b = batch(&mut rng, (width * height) as u32, 2000);
+            let copy = || FilmBatch { splats: b.splats.clone(), ..FilmBatch::default() };
+            film.merge(&mut copy(), 2000);
+            noise.add(&mut copy(), 2000);
+        }
+        let (a, b) = (film.flushed().image(1.0).pixel_rel_error(), noise.rel_error());
+        assert!(a > 0.0 && (a - b).abs() <= 1e-5 * a, "film {a}, pixel noise {b}");
     }
 
     /// Batches held and added in groups, tile by tile (`flush`), give the film bit for bit that

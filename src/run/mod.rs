@@ -6,7 +6,7 @@ pub mod converge;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::detectors::film::{CameraModel, Film};
+use crate::detectors::film::{CameraModel, Film, PixelNoise};
 use crate::detectors::tally::Tallies;
 use crate::error::Error;
 use crate::integrators::camera::{ImageKernel, Integrator};
@@ -646,7 +646,7 @@ pub fn choose_estimator(
             view_samples: false,
         };
         let mut total = Tallies::for_scene(scene);
-        let mut film = camera.map(|c| Film::new(c.width, c.height));
+        let mut noise = camera.map(|c| PixelNoise::new(c.width, c.height));
         let mut round = 0;
         while total.photons < PILOT_PHOTONS && total.counters.rays + total.counters.shadow_rays < PILOT_MAX_RAYS {
             let mut parts: Vec<_> = (0..PILOT_PARTS)
@@ -655,14 +655,14 @@ pub fn choose_estimator(
                 .collect();
             for (t, f) in &mut parts {
                 total.merge(t);
-                if let (Some(film), Some(f)) = (film.as_mut(), f.as_mut()) {
-                    film.merge(f, t.photons);
+                if let (Some(noise), Some(f)) = (noise.as_mut(), f.as_mut()) {
+                    noise.add(f, t.photons);
                 }
             }
             round += 1;
         }
         // The light-traced image's relative variance per photon: N × (pixel noise)².
-        let image = film.map(|mut f| f.flushed().image(1.0).pixel_rel_error().powi(2) * total.photons as f64);
+        let image = noise.map(|n| n.rel_error().powi(2) * total.photons as f64);
         (total, image.filter(|v| v.is_finite()))
     };
     let (analog, expected) = rayon::join(|| pilot(Estimator::Analog), || pilot(Estimator::Expected));
