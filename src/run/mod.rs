@@ -360,7 +360,7 @@ pub fn simulate_controlled(
     };
     let hero = kernel.uses_hero();
     let mut film = camera.as_ref().map(|c| {
-        let film = Film::new(c.width, c.height);
+        let film = pool.install(|| Film::new(c.width, c.height));
         match &view {
             Some(v) => film.with_listed_camera_pixels(v.pixels().to_vec()),
             None => film,
