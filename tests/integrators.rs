@@ -696,18 +696,19 @@ fn a_point_light_seen_directly_images_alike_in_light_path_and_bdpt() {
     for spectral in [false, true] {
         let toml = point_light_box(spectral);
         assert_eq!(scene(&toml).effects.spectral, spectral);
-        let runs: Vec<(Integrator, (f64, f64), (f64, f64), (f64, f64))> =
-            [Integrator::Light, Integrator::Path, Integrator::Bdpt]
-                .into_iter()
-                .enumerate()
-                .map(|(k, i)| {
-                    let (img, mean, _) = render(&toml, i, 200_000, 21 + k as u64);
-                    let at = region(&img, &[pixel]);
-                    let wall = region(&img, &ring);
-                    println!("spectral {spectral} {i:?}: light pixel {at:?}, wall {wall:?}, image {mean:?}");
-                    (i, at, wall, mean)
-                })
-                .collect();
+        // Each integrator's (value, standard error) at the light's pixel, its ring and the image mean.
+        type Estimates = (Integrator, (f64, f64), (f64, f64), (f64, f64));
+        let runs: Vec<Estimates> = [Integrator::Light, Integrator::Path, Integrator::Bdpt]
+            .into_iter()
+            .enumerate()
+            .map(|(k, i)| {
+                let (img, mean, _) = render(&toml, i, 200_000, 21 + k as u64);
+                let at = region(&img, &[pixel]);
+                let wall = region(&img, &ring);
+                println!("spectral {spectral} {i:?}: light pixel {at:?}, wall {wall:?}, image {mean:?}");
+                (i, at, wall, mean)
+            })
+            .collect();
         // Independent estimates (different seeds): z of each difference over its standard
         // error. The pixel's and the image's estimates are means of many independent samples
         // (or film batches), close to normal, so |z| < 4 fails falsely with probability 6e-5

@@ -64,7 +64,9 @@ fn parts_merged_in_any_order_write_the_single_runs_bytes() {
     // (scene, extra flags, parts as batch ranges, the order they are given to merge): the light
     // tracer's film, maps with stratified batches (their between-batch errors), the camera
     // integrators' film part.
-    let cases: [(&str, &[&str], &[(u64, u64)], &[usize]); 4] = [
+    // (scene file, flags, parts' batch ranges, merge order)
+    type Case<'a> = (&'a str, &'a [&'a str], &'a [(u64, u64)], &'a [usize]);
+    let cases: [Case; 4] = [
         ("cornell_box.toml", &[], &[(0, 2), (2, 3), (3, 5)], &[1, 2, 0]),
         ("office.toml", &["--no-image", "--stratified"], &[(0, 1), (1, 4)], &[1, 0]),
         ("glass.toml", &["--integrator", "bdpt", "--seed", "4"], &[(0, 1), (1, 2)], &[1, 0]),

@@ -391,6 +391,8 @@ impl Geometry {
                 found.then(|| hit.assume_init())
             };
         }
+        // The portable test's scalar loop covers a leaf of any count: the flag, which only
+        // compiles in the lanes' second pass, has no effect there.
         self.intersect_with::<bvh::Portable, true>(origin, dir, t_max, skip)
     }
 
