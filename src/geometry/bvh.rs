@@ -104,6 +104,11 @@ impl Bvh8 {
         self.nodes.iter().map(|n| n.child.iter().filter(|&&c| c != NO_CHILD).map(|&c| kind(c)).collect()).collect()
     }
 
+    /// Every leaf's first triangle and count.
+    pub fn leaves(&self) -> Vec<(u32, u32)> {
+        self.nodes.iter().flat_map(|n| n.child).filter(|&c| c != NO_CHILD && c & LEAF != 0).map(leaf_parts).collect()
+    }
+
     /// Levels of the tree (the root alone is 1).
     #[cfg(test)]
     pub fn depth(&self) -> usize {

@@ -371,7 +371,7 @@ impl Kernel<'_> {
                 if DIELECTRIC { self.emitter.medium_at(birth.light, birth.prim) } else { None };
             loop {
                 out.counters.rays += 1;
-                let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+                let next = geo.intersect_leaving(origin, dir, f32::INFINITY, skip);
                 // The medium is the dielectric the photon last refracted into, or the one its light
                 // sits in (`Emitter::medium_at`); without dielectrics none of this is compiled in.
                 // A `[media]` medium that scatters: a free flight t ~ μt e^{−μt t}; a collision

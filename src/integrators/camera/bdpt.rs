@@ -312,7 +312,7 @@ impl ImageKernel<'_> {
         let mut crossings = 0;
         while path.len() < max_len {
             counters.rays += 1;
-            let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+            let next = geo.intersect_leaving(origin, dir, f32::INFINITY, skip);
             if DIELECTRIC {
                 let t_hit = next.map_or(f64::INFINITY, |h| h.t as f64);
                 if let Some((t, c)) = self.fly::<SPECTRAL>(medium, t_hit, wl, &mut beta, &mut lane_pdf, s, counters) {

@@ -77,7 +77,7 @@ impl ImageKernel<'_> {
         let mut scatterings = 0usize;
         loop {
             counters.rays += 1;
-            let next = geo.intersect(origin, dir, f32::INFINITY, skip);
+            let next = geo.intersect_leaving(origin, dir, f32::INFINITY, skip);
             if DIELECTRIC {
                 let t_hit = next.map_or(f64::INFINITY, |h| h.t as f64);
                 if let Some((t, c)) =
