@@ -953,8 +953,8 @@ fn variance_of_mean(sum: f64, sq_over_n: f64, photons: u64, film_batches: u64) -
 
 /// The light-traced image's typical relative pixel error (`Image::pixel_rel_error` of a film's
 /// image without a camera part), from Y's two sums a pixel in plain f64: all the estimator pilot
-/// needs of its image. A film's exact sums and its finished image cost the pilot two 32 MB films
-/// at 512², and most of its time. Batches are added in the caller's fixed order, so the figure
+/// needs of its image. Two films of exact sums (32 MB each at 512²) and their finished images
+/// took most of the pilot's time. Batches are added in the caller's fixed order, so the figure
 /// depends on them only.
 pub struct PixelNoise {
     /// Per pixel: Y's sum and its Σ_b S_b²/n_b.
