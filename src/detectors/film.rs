@@ -401,6 +401,14 @@ impl FilmBatch {
         // The digest is all that is merged: the list goes back for this thread's next batch.
         keep_list(std::mem::take(&mut self.splats));
     }
+
+    /// The batch's digest, made here where its worker did not make it (a batch built by hand).
+    fn take_digest(&mut self, photons: u64) -> Digest {
+        if self.digest.is_none() {
+            self.digest(photons);
+        }
+        self.digest.take().expect("just digested")
+    }
 }
 
 thread_local! {
@@ -659,14 +667,7 @@ impl Film {
         }
         #[cfg(not(target_arch = "x86_64"))]
         self.merge_camera(b, |sums, v| sums.add(v));
-        let digest = match b.digest.take() {
-            Some(d) => d,
-            None => {
-                // Not digested by its worker (a batch built by hand): digest it here.
-                b.digest(photons);
-                b.digest.take().expect("just digested")
-            }
-        };
+        let digest = b.take_digest(photons);
         self.image_y_sq_over_n.add(digest.image_y_sq_over_n);
         self.film_batches += digest.film_batches;
         self.photons += photons;
@@ -975,10 +976,7 @@ impl PixelNoise {
 
     /// Adds one transport batch of `photons` photons (its light-traced splats).
     pub fn add(&mut self, b: &mut FilmBatch, photons: u64) {
-        if b.digest.is_none() {
-            b.digest(photons);
-        }
-        let Some(mut digest) = b.digest.take() else { return };
+        let mut digest = b.take_digest(photons);
         for &(p, v) in &digest.pixels {
             if let Some(s) = self.y.get_mut(p as usize) {
                 s[0] += v[1];
