@@ -13,7 +13,7 @@
 //! (from /proc/thread-self/schedstat on Linux, else wall time).
 
 use glam::{DVec3, Vec3A};
-use photon::geometry::{Geometry, NO_PRIM};
+use photon::geometry::{Geometry, RayQuery, INTERLEAVE, NO_PRIM};
 use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::time::Instant;
@@ -222,17 +222,42 @@ fn main() {
         bounce.len(),
         shadow.len()
     );
-    type Case<'a> = (&'a str, &'a [Ray], Box<dyn Fn(&Ray) -> bool + 'a>);
-    let cases: [Case; 2] = [
+    // Each case casts all its rays and counts those that hit (closest) or are blocked (shadow).
+    type Case<'a> = (&'a str, &'a [Ray], Box<dyn Fn(&[Ray]) -> usize + 'a>);
+    let query = |r: &Ray| RayQuery { origin: r.o, dir: r.d, t_max: r.t_max, leaving: prim_of[r.from] };
+    let cases: [Case; 3] = [
         (
             "photon intersect (closest)",
             &bounce,
-            Box::new(|r: &Ray| geo.intersect_leaving(r.o, r.d, r.t_max, prim_of[r.from]).is_some()),
+            Box::new(|rays: &[Ray]| {
+                rays.iter().filter(|r| geo.intersect_leaving(r.o, r.d, r.t_max, prim_of[r.from]).is_some()).count()
+            }),
+        ),
+        (
+            "photon intersect_many (closest)",
+            &bounce,
+            // The same rays, INTERLEAVE at a time walked in turns (`Geometry::intersect_many`).
+            Box::new(|rays: &[Ray]| {
+                let mut hits = [None; INTERLEAVE];
+                let mut queries = [query(&rays[0]); INTERLEAVE];
+                let mut count = 0;
+                for group in rays.chunks(INTERLEAVE) {
+                    for (q, r) in queries.iter_mut().zip(group) {
+                        *q = query(r);
+                    }
+                    let n = group.len();
+                    geo.intersect_many(&queries[..n], &mut hits[..n]);
+                    count += hits[..n].iter().filter(|h| h.is_some()).count();
+                }
+                count
+            }),
         ),
         (
             "photon unoccluded (shadow)",
             &shadow,
-            Box::new(|r: &Ray| !geo.unoccluded(r.o, r.d, r.t_max, [prim_of[r.from], NO_PRIM])),
+            Box::new(|rays: &[Ray]| {
+                rays.iter().filter(|r| !geo.unoccluded(r.o, r.d, r.t_max, [prim_of[r.from], NO_PRIM])).count()
+            }),
         ),
     ];
     let mut cpu = vec![Vec::new(); cases.len()];
@@ -240,7 +265,7 @@ fn main() {
     for round in 0..=rounds {
         for (k, (_, rays, cast)) in cases.iter().enumerate() {
             let (wall0, cpu0) = (Instant::now(), thread_cpu());
-            let h = rays.iter().filter(|r| cast(r)).count();
+            let h = cast(rays);
             let wall = wall0.elapsed().as_secs_f64();
             let secs = match (cpu0, thread_cpu()) {
                 (Some(a), Some(b)) => b - a,

@@ -219,6 +219,85 @@ impl Bvh8 {
         }
     }
 
+    /// Whether the tree and its triangles outgrow the L2 cache (`large`).
+    pub fn is_large(&self) -> bool {
+        self.large
+    }
+
+    /// A closest-hit walk to be taken a step at a time (`closest_step`).
+    #[inline(always)]
+    pub fn closest_start(&self, origin: Vec3A, dir: Vec3A, t_max: f32) -> ClosestWalk {
+        ClosestWalk { ray: RayPlanes::new(origin, dir), sp: 0, t_max, at: 0 }
+    }
+
+    /// One node or leaf of walk `w`: `closest`'s steps, in its order, so the same leaves are
+    /// tested with the same t_max. False once the walk has ended (`w.t_max()` is then final).
+    /// Several rays' walks taking turns step by step give each ray's prefetched next node the
+    /// others' steps to arrive in (`Geometry::intersect_many`).
+    #[inline(always)]
+    pub fn closest_step<T: NodeTest>(
+        &self,
+        w: &mut ClosestWalk,
+        stack: &mut WalkStack,
+        prefetch_leaf: &impl Fn(u32, u32),
+        leaf: &mut impl FnMut(u32, u32, f32) -> f32,
+    ) -> bool {
+        let at = w.at;
+        if at & LEAF == 0 {
+            let node = &self.nodes[at as usize];
+            let (mut mask, near) = if w.ray.still != 0 {
+                T::hits::<true>(node, &w.ray, w.t_max)
+            } else {
+                T::hits::<false>(node, &w.ray, w.t_max)
+            };
+            self.prefetch(node, mask, prefetch_leaf);
+            if mask != 0 {
+                let first = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                if mask == 0 {
+                    w.at = node.child[first];
+                    return true;
+                }
+                // As `closest_walk`: the hit children pushed farthest first, the nearest taken.
+                let mut sp = w.sp;
+                let base = sp;
+                stack[sp].write((node.child[first], near[first]));
+                sp += 1;
+                while mask != 0 {
+                    let k = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let entry = (node.child[k], near[k]);
+                    let mut j = sp;
+                    // SAFETY: base ≤ j − 1 < sp, a written entry.
+                    while j > base && unsafe { stack[j - 1].assume_init() }.1 < entry.1 {
+                        stack[j] = stack[j - 1];
+                        j -= 1;
+                    }
+                    stack[j].write(entry);
+                    sp += 1;
+                }
+                sp -= 1;
+                // SAFETY: sp < the count written.
+                w.at = unsafe { stack[sp].assume_init() }.0;
+                w.sp = sp;
+                return true;
+            }
+        } else {
+            let (first, count) = leaf_parts(at);
+            w.t_max = leaf(first, count, w.t_max);
+        }
+        while w.sp > 0 {
+            w.sp -= 1;
+            // SAFETY: entries below the old sp were written.
+            let (next, near) = unsafe { stack[w.sp].assume_init() };
+            if near <= w.t_max {
+                w.at = next;
+                return true;
+            }
+        }
+        false
+    }
+
     /// Starts loading what the traversal reads next: the hit inner children's four lines (three
     /// of box rows, then the child references, read right after the test) and (through
     /// `prefetch_leaf`, given a leaf's first triangle and count) the hit leaves' triangles. In a
@@ -302,6 +381,21 @@ impl Bvh8 {
         }
     }
 }
+
+/// A closest-hit walk between steps (`Bvh8::closest_step`): the ray, the height of its stack
+/// (kept apart, a `WalkStack`, so that a walk is started without copying one), its t_max, and
+/// the node or leaf visited next.
+pub struct ClosestWalk {
+    ray: RayPlanes,
+    sp: usize,
+    t_max: f32,
+    at: u32,
+}
+
+/// A walk's stack of children still to visit, with their entry distances. Left uninitialised
+/// (`WALK_STACK_UNSET`), as in `closest_walk`; entries below the walk's height are written.
+pub type WalkStack = [MaybeUninit<(u32, f32)>; STACK];
+pub const WALK_STACK_UNSET: WalkStack = [MaybeUninit::uninit(); STACK];
 
 /// A ray's part of the slab test, once per ray: 1/d, o/d (so each plane costs one FMA,
 /// t = plane·(1/d) − o/d), and which plane row is the near one on each axis (the low plane where
