@@ -98,7 +98,8 @@ embree_rays() {  # scene
 }
 photon_rays() {  # scene
   LEVEL=$LEVEL "$RAYBENCH" "$1" "$RAYS_M" 1 | awk -v s="$1" '
-    /^photon intersect/ {print "photon_closest_" s, $5}
+    /^photon intersect \(/ {print "photon_closest_" s, $5}
+    /^photon intersect_many/ {print "photon_closest_many_" s, $5}
     /^photon unoccluded/ {print "photon_shadow_" s, $5}' >> "$LOG"
 }
 mini() {
@@ -155,6 +156,7 @@ ratio("ray cast, Cornell: photon / Embree (shadow ray)", "photon_shadow_cornell"
 ratio("ray cast, Cornell: photon / Embree robust (closest hit)", "photon_closest_cornell", "embree_robust_closest_cornell", "")
 ratio("ray cast, sphere: photon / Embree (closest hit)", "photon_closest_sphere", "embree_closest_sphere", "<= 1.2")
 ratio("ray cast, sphere: photon / Embree (shadow ray)", "photon_shadow_sphere", "embree_shadow_sphere", "<= 1.2")
+ratio("ray cast, sphere: photon, 32 rays in turns / Embree (closest)", "photon_closest_many_sphere", "embree_closest_sphere", "")
 ratio("whole loop, grey box --no-image: photon / mini tracer", "photon_grey_no_image", "mini_no_image", "<= 1.25")
 ratio("spectral box with image: photon / mini tracer with image", "photon_spectral_image", "mini_image", "")
 ratio("whole loop, sphere box --no-image (tracing): photon / mini", "photon_trace_grey_million", "mini_sphere_no_image", "")
