@@ -100,6 +100,8 @@ photon_rays() {  # scene
   LEVEL=$LEVEL "$RAYBENCH" "$1" "$RAYS_M" 1 | awk -v s="$1" '
     /^photon intersect \(/ {print "photon_closest_" s, $5}
     /^photon intersect_many/ {print "photon_closest_many_" s, $5}
+    /^grey loop, 1 photon at a time/ {print "minimal_loop_one_" s, $9}
+    /^grey loop, 32 photons in flight/ {print "minimal_loop_flight_" s, $8}
     /^photon unoccluded/ {print "photon_shadow_" s, $5}' >> "$LOG"
 }
 mini() {
@@ -157,6 +159,10 @@ ratio("ray cast, Cornell: photon / Embree robust (closest hit)", "photon_closest
 ratio("ray cast, sphere: photon / Embree (closest hit)", "photon_closest_sphere", "embree_closest_sphere", "<= 1.2")
 ratio("ray cast, sphere: photon / Embree (shadow ray)", "photon_shadow_sphere", "embree_shadow_sphere", "<= 1.2")
 ratio("ray cast, sphere: photon, 32 rays in turns / Embree (closest)", "photon_closest_many_sphere", "embree_closest_sphere", "")
+ratio("raybench's minimal grey loop, Cornell: 32 in flight / 1 at a time", "minimal_loop_flight_cornell", "minimal_loop_one_cornell", "")
+ratio("raybench's minimal grey loop, sphere: 32 in flight / 1 at a time", "minimal_loop_flight_sphere", "minimal_loop_one_sphere", "")
+ratio("raybench's minimal grey loop: sphere / Cornell, 1 at a time", "minimal_loop_one_sphere", "minimal_loop_one_cornell", "")
+ratio("raybench's minimal grey loop: sphere / Cornell, 32 in flight", "minimal_loop_flight_sphere", "minimal_loop_flight_cornell", "")
 ratio("whole loop, grey box --no-image: photon / mini tracer", "photon_grey_no_image", "mini_no_image", "<= 1.25")
 ratio("spectral box with image: photon / mini tracer with image", "photon_spectral_image", "mini_image", "")
 ratio("whole loop, sphere box --no-image (tracing): photon / mini", "photon_trace_grey_million", "mini_sphere_no_image", "")
