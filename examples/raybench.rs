@@ -181,6 +181,23 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Seconds of this thread's CPU time (else wall time) that `f` takes.
+fn timed(f: impl FnOnce()) -> f64 {
+    let (wall0, cpu0) = (Instant::now(), thread_cpu());
+    f();
+    let wall = wall0.elapsed().as_secs_f64();
+    match (cpu0, thread_cpu()) {
+        (Some(a), Some(b)) => b - a,
+        _ => wall,
+    }
+}
+
+/// Per-round figures in seconds as "median [min, max]" in ns.
+fn spread_ns(xs: &[f64]) -> String {
+    let (lo, hi) = xs.iter().fold((f64::INFINITY, 0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+    format!("{:8.1} [{:.1}, {:.1}]", median(xs.to_vec()) * 1e9, lo * 1e9, hi * 1e9)
+}
+
 /// The sphere's subdivision level: 8 (as the reference programs build it), or `LEVEL` from the
 /// environment, to compare a sphere that fits the caches with one that does not
 /// (bench/embree.sh passes the same level to Embree's programs).
@@ -358,14 +375,7 @@ fn main() {
     let mut hits = vec![0usize; cases.len()];
     for round in 0..=rounds {
         for (k, (_, rays, cast)) in cases.iter().enumerate() {
-            let (wall0, cpu0) = (Instant::now(), thread_cpu());
-            let h = cast(rays);
-            let wall = wall0.elapsed().as_secs_f64();
-            let secs = match (cpu0, thread_cpu()) {
-                (Some(a), Some(b)) => b - a,
-                _ => wall,
-            };
-            hits[k] = h;
+            let secs = timed(|| hits[k] = cast(rays));
             // Round 0 warms the caches and is not counted.
             if round > 0 {
                 cpu[k].push(secs / rays.len() as f64);
@@ -374,12 +384,9 @@ fn main() {
     }
     println!("{rounds} rounds; CPU ns per ray (median [min, max]) and the share of rays that hit / are blocked");
     for (k, (name, rays, _)) in cases.iter().enumerate() {
-        let (lo, hi) = cpu[k].iter().fold((f64::INFINITY, 0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
         println!(
-            "{name:<32} ns/ray {:8.1} [{:.1}, {:.1}]  hit/blk% {:6.2}",
-            median(cpu[k].clone()) * 1e9,
-            lo * 1e9,
-            hi * 1e9,
+            "{name:<32} ns/ray {}  hit/blk% {:6.2}",
+            spread_ns(&cpu[k]),
             100.0 * hits[k] as f64 / rays.len() as f64
         );
     }
@@ -390,27 +397,14 @@ fn main() {
     let mut totals = [0.0; 2];
     for round in 0..=rounds {
         for (k, together) in [1, INTERLEAVE].into_iter().enumerate() {
-            let (wall0, cpu0) = (Instant::now(), thread_cpu());
-            totals[k] = grey_loop(&geo, lamp, photons, together);
-            let wall = wall0.elapsed().as_secs_f64();
-            let secs = match (cpu0, thread_cpu()) {
-                (Some(a), Some(b)) => b - a,
-                _ => wall,
-            };
+            let secs = timed(|| totals[k] = grey_loop(&geo, lamp, photons, together));
             if round > 0 {
                 loop_cpu[k].push(secs / photons as f64);
             }
         }
     }
     for (k, name) in ["grey loop, 1 photon at a time", "grey loop, 32 photons in flight"].into_iter().enumerate() {
-        let (lo, hi) = loop_cpu[k].iter().fold((f64::INFINITY, 0f64), |(lo, hi), &x| (lo.min(x), hi.max(x)));
-        println!(
-            "{name:<32} ns/photon {:8.1} [{:.1}, {:.1}]  absorbed {:.6}",
-            median(loop_cpu[k].clone()) * 1e9,
-            lo * 1e9,
-            hi * 1e9,
-            totals[k] / photons as f64
-        );
+        println!("{name:<32} ns/photon {}  absorbed {:.6}", spread_ns(&loop_cpu[k]), totals[k] / photons as f64);
     }
     assert!((totals[0] - totals[1]).abs() <= 1e-9 * totals[0], "the two loops traced different photons");
 }

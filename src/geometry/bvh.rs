@@ -161,7 +161,7 @@ impl Bvh8 {
     ) -> f32 {
         // Uninitialised: zeroing 1.8 kB per ray cost 9 % of a Cornell ray. Entries below `sp`
         // are always written.
-        let mut stack = [MaybeUninit::<(u32, f32)>::uninit(); STACK];
+        let mut stack = WALK_STACK_UNSET;
         let mut sp = 0usize;
         let mut t_max = t_max;
         let mut at = 0u32;
@@ -177,27 +177,7 @@ impl Bvh8 {
                         at = node.child[first];
                         continue 'walk;
                     }
-                    // Push all hit children, then order the pushed run farthest first, so the
-                    // nearest is on top and is taken now.
-                    let base = sp;
-                    stack[sp].write((node.child[first], near[first]));
-                    sp += 1;
-                    while mask != 0 {
-                        let k = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        let entry = (node.child[k], near[k]);
-                        let mut j = sp;
-                        // SAFETY: base ≤ j − 1 < sp, a written entry.
-                        while j > base && unsafe { stack[j - 1].assume_init() }.1 < entry.1 {
-                            stack[j] = stack[j - 1];
-                            j -= 1;
-                        }
-                        stack[j].write(entry);
-                        sp += 1;
-                    }
-                    sp -= 1;
-                    // SAFETY: sp < the count written.
-                    at = unsafe { stack[sp].assume_init() }.0;
+                    (at, sp) = push_nearest_last(node, first, mask, &near, &mut stack, sp);
                     continue 'walk;
                 }
             } else {
@@ -231,7 +211,7 @@ impl Bvh8 {
     }
 
     /// One node or leaf of walk `w`: `closest`'s steps, in its order, so the same leaves are
-    /// tested with the same t_max. False once the walk has ended (`w.t_max()` is then final).
+    /// tested with the same t_max. False once the walk has ended.
     /// Several rays' walks taking turns step by step give each ray's prefetched next node the
     /// others' steps to arrive in (`Geometry::intersect_many`).
     #[inline(always)]
@@ -258,28 +238,7 @@ impl Bvh8 {
                     w.at = node.child[first];
                     return true;
                 }
-                // As `closest_walk`: the hit children pushed farthest first, the nearest taken.
-                let mut sp = w.sp;
-                let base = sp;
-                stack[sp].write((node.child[first], near[first]));
-                sp += 1;
-                while mask != 0 {
-                    let k = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let entry = (node.child[k], near[k]);
-                    let mut j = sp;
-                    // SAFETY: base ≤ j − 1 < sp, a written entry.
-                    while j > base && unsafe { stack[j - 1].assume_init() }.1 < entry.1 {
-                        stack[j] = stack[j - 1];
-                        j -= 1;
-                    }
-                    stack[j].write(entry);
-                    sp += 1;
-                }
-                sp -= 1;
-                // SAFETY: sp < the count written.
-                w.at = unsafe { stack[sp].assume_init() }.0;
-                w.sp = sp;
+                (w.at, w.sp) = push_nearest_last(node, first, mask, &near, stack, w.sp);
                 return true;
             }
         } else {
@@ -380,6 +339,39 @@ impl Bvh8 {
             at = unsafe { stack[sp].assume_init() };
         }
     }
+}
+
+/// A node's hit children, slot `first` and those of `rest` (not empty), pushed on `stack` from
+/// height `sp` and ordered farthest first, so the nearest is on top: taken off again, it is the
+/// child visited next. Returns it and the new height.
+#[inline(always)]
+fn push_nearest_last(
+    node: &Node8,
+    first: usize,
+    mut rest: u32,
+    near: &[f32; 8],
+    stack: &mut WalkStack,
+    mut sp: usize,
+) -> (u32, usize) {
+    let base = sp;
+    stack[sp].write((node.child[first], near[first]));
+    sp += 1;
+    while rest != 0 {
+        let k = rest.trailing_zeros() as usize;
+        rest &= rest - 1;
+        let entry = (node.child[k], near[k]);
+        let mut j = sp;
+        // SAFETY: base ≤ j − 1 < sp, a written entry.
+        while j > base && unsafe { stack[j - 1].assume_init() }.1 < entry.1 {
+            stack[j] = stack[j - 1];
+            j -= 1;
+        }
+        stack[j].write(entry);
+        sp += 1;
+    }
+    sp -= 1;
+    // SAFETY: sp < the count written.
+    (unsafe { stack[sp].assume_init() }.0, sp)
 }
 
 /// A closest-hit walk between steps (`Bvh8::closest_step`): the ray, the height of its stack

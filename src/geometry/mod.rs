@@ -561,8 +561,8 @@ impl Geometry {
     /// bit. In a tree that outgrows the caches, up to `INTERLEAVE` rays are walked at once, a
     /// node or leaf of each in turn, so that while one ray's next node comes from memory
     /// (prefetched) the others' steps run; a single ray's walk there mostly waits (raybench's
-    /// 1.3 M-triangle sphere: 0.69× the time a closest hit). A tree that fits takes the rays one
-    /// by one: the turns' bookkeeping cost more than the waits they hide (Cornell box 1.3×).
+    /// 1.3 M-triangle sphere: 0.6–0.75× the time a closest hit). A tree that fits takes the rays
+    /// one by one: the turns' bookkeeping cost more than the waits they hide (Cornell box 1.3×).
     pub fn intersect_many(&self, rays: &[RayQuery], hits: &mut [Option<Hit>]) {
         assert_eq!(rays.len(), hits.len(), "a hit for each ray");
         #[cfg(target_arch = "x86_64")]
@@ -601,6 +601,7 @@ impl Geometry {
             let pass = self.flat_leaf.get(r.leaving as usize).copied().unwrap_or(NO_PRIM);
             (bvh.closest_start(r.origin, r.dir, r.t_max), ShearedRay::new(r.origin, r.dir), pass)
         };
+        // Slots past n repeat the last ray and are never stepped.
         let mut walks: [_; INTERLEAVE] = std::array::from_fn(|k| start(&rays[k.min(n - 1)]));
         let mut stacks = [bvh::WALK_STACK_UNSET; INTERLEAVE];
         let mut going: u64 = (1u64 << n) - 1;
@@ -1520,26 +1521,8 @@ mod tests {
         let mut u = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
         for (scale, centre) in [(1e-3f32, 0.0f32), (1.0, 0.0), (1.0, 1e4), (1e3, 0.0), (1e4, -3e4)] {
             // A closed unit cube, each face a 4 × 4 grid of squares, and 200 small random triangles.
-            let mut tris = Vec::new();
             let at = |p: Vec3A| (p - 0.5) * scale + centre;
-            for axis in 0..3 {
-                for side in [0.0f32, 1.0] {
-                    for i in 0..4 {
-                        for j in 0..4 {
-                            let q = |di: i32, dj: i32| {
-                                let (a, b) = ((i + di) as f32 / 4.0, (j + dj) as f32 / 4.0);
-                                at(match axis {
-                                    0 => Vec3A::new(side, a, b),
-                                    1 => Vec3A::new(b, side, a),
-                                    _ => Vec3A::new(a, b, side),
-                                })
-                            };
-                            tris.push([q(0, 0), q(1, 0), q(1, 1)]);
-                            tris.push([q(0, 0), q(1, 1), q(0, 1)]);
-                        }
-                    }
-                }
-            }
+            let mut tris = grid_cube(4, at);
             for _ in 0..200 {
                 let c = Vec3A::new(u(), u(), u()) * 0.8 + 0.1;
                 tris.push([c, c + 0.1 * Vec3A::new(u(), u(), u()), c + 0.1 * Vec3A::new(u(), u(), u())].map(at));
@@ -1678,6 +1661,30 @@ mod tests {
         }
     }
 
+    /// The unit cube's six faces, each a grid × grid of squares (two triangles each), placed by `at`.
+    fn grid_cube(grid: i32, at: impl Fn(Vec3A) -> Vec3A) -> Vec<[Vec3A; 3]> {
+        let mut tris = Vec::new();
+        for axis in 0..3 {
+            for side in [0.0f32, 1.0] {
+                for i in 0..grid {
+                    for j in 0..grid {
+                        let q = |di: i32, dj: i32| {
+                            let (a, b) = ((i + di) as f32 / grid as f32, (j + dj) as f32 / grid as f32);
+                            at(match axis {
+                                0 => Vec3A::new(side, a, b),
+                                1 => Vec3A::new(b, side, a),
+                                _ => Vec3A::new(a, b, side),
+                            })
+                        };
+                        tris.push([q(0, 0), q(1, 0), q(1, 1)]);
+                        tris.push([q(0, 0), q(1, 1), q(0, 1)]);
+                    }
+                }
+            }
+        }
+        tris
+    }
+
     /// `intersect_many` walks rays in turns in a tree that outgrows the caches and one by one in
     /// a small one: either way each hit is `intersect_leaving`'s, bit for bit, for rays leaving
     /// triangles or free, with infinite and finite t_max, in groups of any size (partial turns).
@@ -1689,25 +1696,7 @@ mod tests {
         for (grid, scale, centre) in [(64, 1.0f32, 0.0f32), (64, 1e3, -3e3), (4, 1.0, 0.0)] {
             // A closed unit cube, each face a grid × grid of squares, and 300 random triangles.
             let at = |p: Vec3A| (p - 0.5) * scale + centre;
-            let mut tris = Vec::new();
-            for axis in 0..3 {
-                for side in [0.0f32, 1.0] {
-                    for i in 0..grid {
-                        for j in 0..grid {
-                            let q = |di: i32, dj: i32| {
-                                let (a, b) = ((i + di) as f32 / grid as f32, (j + dj) as f32 / grid as f32);
-                                at(match axis {
-                                    0 => Vec3A::new(side, a, b),
-                                    1 => Vec3A::new(b, side, a),
-                                    _ => Vec3A::new(a, b, side),
-                                })
-                            };
-                            tris.push([q(0, 0), q(1, 0), q(1, 1)]);
-                            tris.push([q(0, 0), q(1, 1), q(0, 1)]);
-                        }
-                    }
-                }
-            }
+            let mut tris = grid_cube(grid, at);
             for _ in 0..300 {
                 let c = Vec3A::new(u(), u(), u()) * 0.8 + 0.1;
                 tris.push([c, c + 0.1 * Vec3A::new(u(), u(), u()), c + 0.1 * Vec3A::new(u(), u(), u())].map(at));
