@@ -100,8 +100,9 @@ photon_rays() {  # scene
   LEVEL=$LEVEL "$RAYBENCH" "$1" "$RAYS_M" 1 | awk -v s="$1" '
     /^photon intersect \(/ {print "photon_closest_" s, $5}
     /^photon intersect_many/ {print "photon_closest_many_" s, $5}
-    /^grey loop, 1 photon at a time/ {print "minimal_loop_one_" s, $9}
-    /^grey loop, 32 photons in flight/ {print "minimal_loop_flight_" s, $8}
+    /^grey loop/ {for (i = 1; i < NF; i++) if ($i == "ns/photon") v = $(i + 1)}
+    /^grey loop, 1 photon at a time/ {print "minimal_loop_one_" s, v}
+    /^grey loop, [0-9]+ photons in flight/ {print "minimal_loop_flight_" s, v}
     /^photon unoccluded/ {print "photon_shadow_" s, $5}' >> "$LOG"
 }
 mini() {

@@ -44,7 +44,7 @@ use crate::scene::{LightShape, Scene};
 /// hit per photon, ~3 % of a Cornell-box image run's time.
 pub const VIEW_EVERY: u64 = 4;
 
-// The samples' groups (`EmitterView::trace_batch`) start at the cancel check's multiples.
+// Every multiple of the cancel check's period starts a group of samples (`trace_batch`).
 const _: () = assert!(CANCEL_CHECK_PHOTONS.is_multiple_of(INTERLEAVE as u64));
 
 /// How far on either side of a camera ray's nearest hit, relative to its distance, a light is
@@ -200,7 +200,7 @@ impl EmitterView {
 
     /// XYZ radiance reaching the camera along `dir` from an eligible light it hits first (zero
     /// for anything else, which the light tracer's splats image): L_e = Φ p(ω)/(A cosθ) times the
-    /// light's mean colour. `first` is the ray's closest hit (`Geometry::intersect`).
+    /// light's mean colour. `first` is the ray's closest hit, `intersect(eye, dir, ∞, NO_PRIM)`.
     ///
     /// A lamp flush with another surface (a quad on the ceiling's plane) is met at the distance
     /// of that surface, and rounding decides which hit comes out nearer. Such a lamp is seen as
