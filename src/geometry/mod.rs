@@ -1570,14 +1570,10 @@ mod tests {
                     let scalar_free = geo.unoccluded(o, d, end, [skip, hit.prim]);
                     geo.simd = true;
                     assert_eq!(scalar_free, geo.unoccluded(o, d, end, [skip, hit.prim]), "{o} {d} to {end}");
-                    let (p, err) = geo.hit_point(&hit);
-                    let ng = geo.normal(hit.prim as usize);
-                    let (t1, t2) = basis(ng);
                     // Back to the side it came from, at grazing angles too (where a corner's
                     // wall lies just ahead).
-                    let side = if d.dot(ng) > 0.0 { -1.0 } else { 1.0 };
-                    let (a, b, c) = (u() * 2.0 - 1.0, u() * 2.0 - 1.0, (1e-3 + u()).powi(3));
-                    d = (t1 * a + t2 * b + ng * (side * c)).normalize();
+                    let (p, err);
+                    (p, err, d) = bounce(&geo, &hit, d, [u() * 2.0 - 1.0, u() * 2.0 - 1.0, (1e-3 + u()).powi(3)]);
                     o = geo.spawn(p, err, hit.prim, d);
                     skip = hit.prim;
                 }
@@ -1649,12 +1645,8 @@ mod tests {
                     assert_eq!(leaving.map(|h| h.t), brute, "scale {scale}: {o} {d} leaving {skip}");
                     passed += geo.flat_leaf.get(skip as usize).is_some_and(|&f| f != NO_PRIM) as u32;
                     let Some(hit) = leaving else { break };
-                    let (p, err) = geo.hit_point(&hit);
-                    let ng = geo.normal(hit.prim as usize);
-                    let (t1, t2) = basis(ng);
-                    let side = if d.dot(ng) > 0.0 { -1.0 } else { 1.0 };
-                    let (a, b, c) = (u() * 2.0 - 1.0, u() * 2.0 - 1.0, (1e-3 + u()).powi(3));
-                    d = (t1 * a + t2 * b + ng * (side * c)).normalize();
+                    let (p, err);
+                    (p, err, d) = bounce(&geo, &hit, d, [u() * 2.0 - 1.0, u() * 2.0 - 1.0, (1e-3 + u()).powi(3)]);
                     o = geo.spawn_from(p, err, hit.prim, hit.b, d);
                     skip = hit.prim;
                 }
@@ -1662,6 +1654,17 @@ mod tests {
             // Most rays left a flat leaf, so the pass was taken.
             assert!(passed > 10_000, "scale {scale}: {passed} rays left a flat leaf");
         }
+    }
+
+    /// A bounce off `hit` of a ray travelling along `d`: the hit point and its error bound, and
+    /// the direction a·t₁ + b·t₂ + c·n (normalised) about the triangle's normal, back to the side
+    /// the ray came from.
+    fn bounce(geo: &Geometry, hit: &Hit, d: Vec3A, [a, b, c]: [f32; 3]) -> (Vec3A, Vec3A, Vec3A) {
+        let (p, err) = geo.hit_point(hit);
+        let ng = geo.normal(hit.prim as usize);
+        let (t1, t2) = basis(ng);
+        let side = if d.dot(ng) > 0.0 { -1.0 } else { 1.0 };
+        (p, err, (t1 * a + t2 * b + ng * (side * c)).normalize())
     }
 
     /// The unit cube's six faces, each a grid × grid of squares (two triangles each), placed by `at`.
@@ -1722,15 +1725,12 @@ mod tests {
                     _ => (Vec3A::new(u(), u(), u()) - 0.5).normalize(),
                 };
                 let mut leaving = NO_PRIM;
-                for bounce in 0..5 {
-                    let t_max = if bounce % 2 == 1 { scale * u() } else { f32::INFINITY };
+                for k in 0..5 {
+                    let t_max = if k % 2 == 1 { scale * u() } else { f32::INFINITY };
                     rays.push(RayQuery { origin: o, dir: d, t_max, leaving });
                     let Some(hit) = geo.intersect_leaving(o, d, f32::INFINITY, leaving) else { break };
-                    let (p, err) = geo.hit_point(&hit);
-                    let ng = geo.normal(hit.prim as usize);
-                    let (t1, t2) = basis(ng);
-                    let side = if d.dot(ng) > 0.0 { -1.0 } else { 1.0 };
-                    d = (t1 * (u() * 2.0 - 1.0) + t2 * (u() * 2.0 - 1.0) + ng * (side * (1e-3 + u()))).normalize();
+                    let (p, err);
+                    (p, err, d) = bounce(&geo, &hit, d, [u() * 2.0 - 1.0, u() * 2.0 - 1.0, 1e-3 + u()]);
                     o = geo.spawn_from(p, err, hit.prim, hit.b, d);
                     leaving = hit.prim;
                 }

@@ -33,8 +33,8 @@ use glam::Vec3A;
 
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::Counters;
-use crate::geometry::{Geometry, Hit, RayEnd, RayQuery, INTERLEAVE, NO_PRIM};
-use crate::integrators::batch::{cancelled, BATCH_PHOTONS, CANCEL_CHECK_PHOTONS};
+use crate::geometry::{Geometry, RayEnd, NO_PRIM};
+use crate::integrators::batch::{cancelled, BATCH_PHOTONS};
 use crate::integrators::passage::is_passable;
 use crate::lights::Emitter;
 use crate::sampling::owen_sobol_2d;
@@ -43,9 +43,6 @@ use crate::scene::{LightShape, Scene};
 /// Photons per camera sample of the emitters (after batch 0's first pass): at 1/4 of a closest
 /// hit per photon, ~3 % of a Cornell-box image run's time.
 pub const VIEW_EVERY: u64 = 4;
-
-// Every multiple of the cancel check's period starts a group of samples (`trace_batch`).
-const _: () = assert!(CANCEL_CHECK_PHOTONS.is_multiple_of(INTERLEAVE as u64));
 
 /// How far on either side of a camera ray's nearest hit, relative to its distance, a light is
 /// looked for (`emission_seen`): coplanar hits differ by the rounding of t (~1e-6 of it); whether
@@ -160,47 +157,32 @@ impl EmitterView {
         film.view.clear();
         film.view.extend((0..slots as usize).map(|k| (((listed + k) % m as usize) as u32, [0.0f64; 4], 0u32)));
         let mut slot = 0usize;
-        // The samples' camera rays are cast a group at a time (`Geometry::intersect_many`, which
-        // in a large scene walks them in turns), then read in order.
-        let eye = camera.position;
-        let mut rays = [RayQuery { origin: eye, dir: Vec3A::Z, t_max: f32::INFINITY, leaving: NO_PRIM }; INTERLEAVE];
-        let mut hits = [None; INTERLEAVE];
-        let mut k = 0;
-        while k < samples {
-            // A group starts at a multiple of INTERLEAVE, which divides the check's period: the
-            // run stops at the samples it stopped at one by one.
+        for k in 0..samples {
             if cancelled(cancel, k) {
                 return;
             }
-            let group = (samples - k).min(INTERLEAVE as u64) as usize;
-            for ray in &mut rays[..group] {
-                let pixel = self.pixels[listed];
-                let (u, v) = owen_sobol_2d(point, pixel_seed(run_seed, pixel));
-                listed += 1;
-                if listed == m as usize {
-                    (listed, point) = (0, point.wrapping_add(1));
-                }
-                ray.dir = camera.ray_direction(pixel as usize, u, v);
+            let pixel = self.pixels[listed];
+            let (u, v) = owen_sobol_2d(point, pixel_seed(run_seed, pixel));
+            listed += 1;
+            if listed == m as usize {
+                (listed, point) = (0, point.wrapping_add(1));
             }
-            geo.intersect_many(&rays[..group], &mut hits[..group]);
-            for (ray, &first) in rays[..group].iter().zip(&hits[..group]) {
-                let xyz = self.emission_seen(geo, emitter, eye, ray.dir, first, counters);
-                let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
-                let (x, y, z) = (xyz.x as f64, xyz.y as f64, xyz.z as f64);
-                let (_, acc, n) = &mut film.view[slot];
-                for (a, value) in acc.iter_mut().zip([x, y, z, y * y]) {
-                    *a += value;
-                }
-                *n += 1;
-                slot = if slot + 1 == slots as usize { 0 } else { slot + 1 };
+            let dir = camera.ray_direction(pixel as usize, u, v);
+            let xyz = self.emission_seen(geo, emitter, camera.position, dir, counters);
+            let xyz = if xyz.is_finite() { xyz } else { Vec3A::ZERO };
+            let (x, y, z) = (xyz.x as f64, xyz.y as f64, xyz.z as f64);
+            let (_, acc, n) = &mut film.view[slot];
+            for (a, value) in acc.iter_mut().zip([x, y, z, y * y]) {
+                *a += value;
             }
-            k += group as u64;
+            *n += 1;
+            slot = if slot + 1 == slots as usize { 0 } else { slot + 1 };
         }
     }
 
     /// XYZ radiance reaching the camera along `dir` from an eligible light it hits first (zero
     /// for anything else, which the light tracer's splats image): L_e = Φ p(ω)/(A cosθ) times the
-    /// light's mean colour. `first` is the ray's closest hit, `intersect(eye, dir, ∞, NO_PRIM)`.
+    /// light's mean colour.
     ///
     /// A lamp flush with another surface (a quad on the ceiling's plane) is met at the distance
     /// of that surface, and rounding decides which hit comes out nearer. Such a lamp is seen as
@@ -215,11 +197,10 @@ impl EmitterView {
         emitter: &Emitter,
         eye: Vec3A,
         dir: Vec3A,
-        first: Option<Hit>,
         counters: &mut Counters,
     ) -> Vec3A {
         counters.rays += 1;
-        let Some(first) = first else { return Vec3A::ZERO };
+        let Some(first) = geo.intersect(eye, dir, f32::INFINITY, NO_PRIM) else { return Vec3A::ZERO };
         let (hit, light) = match self.light_of(geo, first.prim) {
             Some(light) => (first, light),
             None => {
