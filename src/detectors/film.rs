@@ -178,15 +178,20 @@ impl CameraModel {
         0.5 * self.width as f64 / self.half_w as f64
     }
 
-    /// Columns and rows of margin around a polygon's image: a pixel, plus what a ray direction's
-    /// f32 rounding (< 10⁻⁶ rad, up to (1 + tan²) image-plane units a radian off axis) spans in
-    /// pixels: with a field of view of hundredths of a degree that is more than a pixel.
+    /// Columns and rows of margin around a polygon's image: a pixel, plus `direction_rounding`
+    /// rounded up (with a field of view of hundredths of a degree that is more than a pixel).
     pub fn view_margin(&self) -> [f64; 2] {
-        let margin = |half: f32, n: usize| {
+        self.direction_rounding().map(|r| 1.0 + r.ceil())
+    }
+
+    /// Columns and rows that a ray direction's f32 rounding (< 10⁻⁶ rad, up to (1 + tan²)
+    /// image-plane units a radian off axis) spans.
+    pub fn direction_rounding(&self) -> [f64; 2] {
+        let span = |half: f32, n: usize| {
             let half = half as f64;
-            1.0 + (1e-6 * (1.0 + 2.0 * half * half) * n as f64 / (2.0 * half)).ceil()
+            1e-6 * (1.0 + 2.0 * half * half) * n as f64 / (2.0 * half)
         };
-        [margin(self.half_w, self.width), margin(self.half_h, self.height)]
+        [span(self.half_w, self.width), span(self.half_h, self.height)]
     }
 
     fn hull_image(&self, mut hull: Vec<DVec3>) -> Option<PolygonImage> {

@@ -36,17 +36,19 @@ const MAX_CANDIDATES: usize = 16;
 
 pub struct ClearView {
     tiles_wide: usize,
+    /// The ray's offset and rounding seen from the nearest depth in view, in pixels (`new`).
+    spread: f64,
     /// Tile k's clear triangles are `prims[start[k]..start[k + 1]]`.
     start: Vec<u32>,
     prims: Vec<u32>,
 }
 
 /// A rectangle of the image in continuous pixel coordinates: [column lo, hi], [row lo, hi].
-type Rect = ([f64; 2], [f64; 2]);
+pub type Rect = ([f64; 2], [f64; 2]);
 
 /// Whether a polygon's image meets `rect` (separating axes: the rectangle's two and the
 /// polygon's edge normals; the image of a convex polygon in front of the eye is convex).
-fn meets(image: &PolygonImage, rect: &Rect) -> bool {
+pub fn meets(image: &PolygonImage, rect: &Rect) -> bool {
     let corners = match image {
         PolygonImage::Anywhere => return true,
         PolygonImage::Corners(corners, _) => corners,
@@ -218,18 +220,31 @@ impl ClearView {
             }
         }
         start.push(prims.len() as u32);
-        Some(ClearView { tiles_wide, start, prims })
+        Some(ClearView { tiles_wide, spread, start, prims })
     }
 
     /// Whether a point of triangle `prim` with projection `proj` is seen by the eye with nothing
     /// in between (false: unknown, cast the ray).
     #[inline(always)]
     pub fn is_clear(&self, proj: &Projection, prim: u32) -> bool {
-        let k = (proj.row as usize / TILE) * self.tiles_wide + proj.col as usize / TILE;
+        self.is_clear_in(proj.col as usize, proj.row as usize, prim)
+    }
+
+    /// Whether every point of triangle `prim` that pixel (`col`, `row`) sees is seen by the eye
+    /// with nothing in between (false: unknown).
+    #[inline(always)]
+    pub fn is_clear_in(&self, col: usize, row: usize, prim: u32) -> bool {
+        let k = (row / TILE) * self.tiles_wide + col / TILE;
         match (self.start.get(k), self.start.get(k + 1)) {
             (Some(&a), Some(&b)) => self.prims.get(a as usize..b as usize).is_some_and(|p| p.contains(&prim)),
             _ => false,
         }
+    }
+
+    /// How far, in pixels, a ray's offset and its hit test's rounding may move what it meets
+    /// from what the exact ray meets (at most; see `new`).
+    pub fn spread(&self) -> f64 {
+        self.spread
     }
 
     /// How many (tile, triangle) pairs are clear.

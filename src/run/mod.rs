@@ -328,8 +328,8 @@ pub fn simulate_controlled(
         _ => None,
     };
     let light_camera = camera.as_ref().filter(|_| integrator == Integrator::Light);
-    let view = light_camera.and_then(|c| EmitterView::new(scene, &emitter, c));
     let clear = light_camera.and_then(|c| ClearView::new(&scene.geometry, c));
+    let view = light_camera.and_then(|c| EmitterView::new(scene, &emitter, c, clear.as_ref()));
     // The pilot's time is part of the run's.
     let start = Instant::now();
     let (transport, pilot) = match opts.transport.estimator {
@@ -628,8 +628,8 @@ pub fn choose_estimator(
     let part = PILOT_ROUND / PILOT_PARTS;
     // The light-traced image without the lamps a run images from the camera: their camera
     // samples do not depend on the estimator, and their splats' noise is not in a run's image.
-    let view = camera.and_then(|c| EmitterView::new(scene, emitter, c));
     let clear = camera.and_then(|c| ClearView::new(&scene.geometry, c));
+    let view = camera.and_then(|c| EmitterView::new(scene, emitter, c, clear.as_ref()));
     let pilot = |estimator| {
         let options = TransportOptions { estimator, ..transport };
         let (view, clear) = (view.as_ref(), clear.as_ref());
