@@ -11,11 +11,12 @@
 //! its length off T's plane, so only what rises above that height, less δ for rounding
 //! (10⁻⁶ of the scene's extent plus the farthest distance), can block; that leaves out coplanar
 //! neighbours and those meeting T at a convex edge. Each image is compared with the tile widened
-//! by the camera's margin for direction rounding (`view_margin`) and by the ray's offset and
-//! rounding seen from the nearest depth in view (a blocker's part nearer than that may be
-//! anywhere), so it agrees with the ray up to the rounding bounds argued here. T's plane is
-//! taken in f64 from its vertices. A triangle almost
-//! edge-on to the eye (|height of the eye over its plane| ≤ 10⁻³ of its distance) is never clear.
+//! by what rounding may move a point's f32 image (`CameraModel::project`, which picks the tile)
+//! or a camera ray's direction, and by the ray's offset and rounding seen from the nearest depth
+//! in view (a blocker's part nearer than that may be anywhere), so it agrees with the ray up to
+//! the rounding bounds argued here. T's plane is taken in f64 from its vertices. A triangle
+//! almost edge-on to the eye (|height of the eye over its plane| ≤ 10⁻³ of its distance) is
+//! never clear.
 //!
 //! Built for scenes of up to `MAX_SCENE_TRIANGLES` triangles (a room, the Cornell box); a tile that more
 //! than `MAX_CANDIDATES` triangles' images meet keeps the ray.
@@ -111,7 +112,7 @@ impl ClearView {
         let images: Vec<Option<PolygonImage>> = tris.iter().map(|t| cam.polygon_image(t)).collect();
         // The ray's offset and rounding (≲ 10⁻⁶ of the extent, generously 4·10⁻⁶ of it plus the
         // farthest distance) seen from the nearest depth in view, in pixels: every tile tested
-        // is widened by that and by the camera's own margin (`view_margin`).
+        // is widened by that and by the image's own rounding (below).
         let near = images.iter().fold(f64::INFINITY, |m, image| match image {
             Some(PolygonImage::Corners(_, z)) => m.min(*z),
             _ => m,
@@ -122,7 +123,9 @@ impl ClearView {
         if !(spread < 1.0) {
             return None;
         }
-        let [mx, my] = cam.view_margin();
+        // What rounding may move a point's image (`project`, which picks its tile) or a camera
+        // ray's direction (`EmitterView` asks about the pixels its rays pass through).
+        let [mx, my] = cam.direction_rounding().map(|r| r + cam.image_rounding());
         let (wx, wy) = (mx + spread, my + spread);
 
         let (tiles_wide, tiles_high) = (cam.width.div_ceil(TILE), cam.height.div_ceil(TILE));
