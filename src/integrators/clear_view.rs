@@ -1,4 +1,4 @@
-//! Surface points the camera sees with nothing in between, known without a ray.
+//! Surface points the camera sees with nothing in between, or cannot see, known without a ray.
 //!
 //! The light tracer connects each photon vertex in view to the pinhole with a shadow ray
 //! (`Geometry::visible`). A blocker of the segment from vertex x on triangle T to the eye lies on
@@ -17,6 +17,13 @@
 //! the rounding bounds argued here. T's plane is taken in f64 from its vertices. A triangle
 //! almost edge-on to the eye (|height of the eye over its plane| ≤ 10⁻³ of its distance) is
 //! never clear.
+//!
+//! The same tiles also know points that are hidden: T is *hidden* in K when another triangle's
+//! part that lies at heights over T's plane, on the eye's side, which every tested segment from
+//! T to the eye crosses (above SHADOW_MARGIN of the eye's height and below the eye, less
+//! rounding), has an image that contains K, widened as above. Every segment from a point of T
+//! seen in K then meets that part between its ends, so `Geometry::visible` finds it (a surface
+//! that lets rays through, an index-matched boundary, is the caller's to rule out).
 //!
 //! Built for scenes of up to `MAX_SCENE_TRIANGLES` triangles (a room, the Cornell box); a tile that more
 //! than `MAX_CANDIDATES` triangles' images meet keeps the ray.
@@ -39,7 +46,8 @@ pub struct ClearView {
     tiles_wide: usize,
     /// The ray's offset and rounding seen from the nearest depth in view, in pixels (`new`).
     spread: f64,
-    /// Tile k's clear triangles are `prims[start[k]..start[k + 1]]`.
+    /// Tile k's clear triangles, and its hidden ones marked `HIDDEN`, are
+    /// `prims[start[k]..start[k + 1]]`.
     start: Vec<u32>,
     prims: Vec<u32>,
 }
@@ -77,12 +85,13 @@ pub fn meets(image: &PolygonImage, rect: &Rect) -> bool {
     true
 }
 
-/// The part of triangle `tri` where side·(q − o)·n ≥ floor (Sutherland–Hodgman against one plane).
-fn clip_to_side(tri: &[DVec3; 3], o: DVec3, n: DVec3, side: f64, floor: f64) -> Vec<DVec3> {
-    let d = tri.map(|q| side * (q - o).dot(n) - floor);
-    let mut out = Vec::with_capacity(4);
-    for k in 0..3 {
-        let (v, u, dv, du) = (tri[k], tri[(k + 1) % 3], d[k], d[(k + 1) % 3]);
+/// The part of polygon `poly` where side·(q − o)·n ≥ floor (Sutherland–Hodgman against one plane).
+fn clip_to_side(poly: &[DVec3], o: DVec3, n: DVec3, side: f64, floor: f64) -> Vec<DVec3> {
+    let d: Vec<f64> = poly.iter().map(|&q| side * (q - o).dot(n) - floor).collect();
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for k in 0..poly.len() {
+        let j = (k + 1) % poly.len();
+        let (v, u, dv, du) = (poly[k], poly[j], d[k], d[j]);
         if dv >= 0.0 {
             out.push(v);
         }
@@ -92,6 +101,42 @@ fn clip_to_side(tri: &[DVec3; 3], o: DVec3, n: DVec3, side: f64, floor: f64) -> 
     }
     out
 }
+
+/// Whether the rectangle `rect` lies strictly inside the convex polygon `corners` (either
+/// orientation).
+pub fn contains(corners: &[[f64; 2]], rect: &Rect) -> bool {
+    let n = corners.len();
+    let area: f64 = (0..n)
+        .map(|k| {
+            let (a, b) = (corners[k], corners[(k + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum();
+    let rect_corners = [[rect.0[0], rect.1[0]], [rect.0[1], rect.1[0]], [rect.0[0], rect.1[1]], [rect.0[1], rect.1[1]]];
+    n >= 3
+        && area != 0.0
+        && (0..n).all(|k| {
+            let (a, b) = (corners[k], corners[(k + 1) % n]);
+            rect_corners.iter().all(|p| {
+                let cross = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+                cross * area.signum() > 0.0
+            })
+        })
+}
+
+/// What the clear view knows of a point's segment to the eye (`ClearView::judge`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Sight {
+    /// `Geometry::visible` would find nothing on it.
+    Clear,
+    /// It would find a blocker: another triangle crosses every such segment in the tile.
+    Hidden,
+    /// Not known: cast the ray.
+    Unknown,
+}
+
+/// Marks a hidden entry of `ClearView::prims`.
+const HIDDEN: u32 = 1 << 31;
 
 impl ClearView {
     /// None for a scene with no triangles or more than `MAX_SCENE_TRIANGLES`, or whose nearest
@@ -186,8 +231,23 @@ impl ClearView {
                 (o, normal, side, floor)
             })
             .collect();
+        // Per triangle: the heights over its plane, on the eye's side, that every tested segment
+        // covers: it runs from a point within δ of the plane to the eye, less SHADOW_MARGIN of
+        // its length at each end, so from SHADOW_MARGIN·|H| to (1 − SHADOW_MARGIN)·|H|, each
+        // within rounding (δ); narrowed by a thousandth of the margin and 2δ each side.
+        let tested: Vec<(f64, f64)> = (0..n)
+            .map(|p| {
+                let height = (eye - planes[p].0).dot(planes[p].1).abs();
+                let m = SHADOW_MARGIN as f64 * (1.0 + 1e-3);
+                (m * height + 2.0 * delta, (1.0 - m) * height - 2.0 * delta)
+            })
+            .collect();
         // The image of triangle u's part on the eye's side of triangle t's plane.
         let mut blockers: HashMap<(u32, u32), Option<PolygonImage>> = HashMap::new();
+        // The image of u's part within t's tested heights, where it lies wholly beyond `near`:
+        // a ray from the eye through it meets that part above t's plane and below the eye, so
+        // between the eye and t, within the tested segment.
+        let mut hiders: HashMap<(u32, u32), Option<Vec<[f64; 2]>>> = HashMap::new();
         let mut start = Vec::with_capacity(candidates.len() + 1);
         let mut prims = Vec::new();
         for (k, list) in candidates.iter().enumerate() {
@@ -219,6 +279,26 @@ impl ClearView {
                 });
                 if !blocked {
                     prims.push(t);
+                    continue;
+                }
+                let hides = list.iter().any(|&u| {
+                    u != t
+                        && hiders
+                            .entry((t, u))
+                            .or_insert_with(|| {
+                                let (o, normal, side, _) = planes[t as usize];
+                                let (lo, hi) = tested[t as usize];
+                                let slab = clip_to_side(&tris[u as usize], o, normal, side, lo);
+                                match cam.polygon_image(&clip_to_side(&slab, o, normal, -side, -hi)) {
+                                    Some(PolygonImage::Corners(c, z)) if z >= near => Some(c),
+                                    _ => None,
+                                }
+                            })
+                            .as_ref()
+                            .is_some_and(|image| contains(image, &rect))
+                });
+                if hides {
+                    prims.push(t | HIDDEN);
                 }
             }
         }
@@ -237,10 +317,34 @@ impl ClearView {
     /// with nothing in between (false: unknown).
     #[inline(always)]
     pub fn is_clear_in(&self, col: usize, row: usize, prim: u32) -> bool {
+        self.tile(col, row).contains(&prim)
+    }
+
+    /// What `Geometry::visible` would find between a point of triangle `prim` with projection
+    /// `proj` and the eye, where that is known. A Hidden point's blocker may be a surface that
+    /// lets rays through (an index-matched boundary): callers that look through such surfaces
+    /// take only Clear.
+    #[inline(always)]
+    pub fn judge(&self, proj: &Projection, prim: u32) -> Sight {
+        for &entry in self.tile(proj.col as usize, proj.row as usize) {
+            if entry == prim {
+                return Sight::Clear;
+            }
+            if entry == prim | HIDDEN {
+                return Sight::Hidden;
+            }
+        }
+        Sight::Unknown
+    }
+
+    /// The entries of the tile holding pixel (`col`, `row`): clear triangles, and hidden ones
+    /// marked `HIDDEN`.
+    #[inline(always)]
+    fn tile(&self, col: usize, row: usize) -> &[u32] {
         let k = (row / TILE) * self.tiles_wide + col / TILE;
         match (self.start.get(k), self.start.get(k + 1)) {
-            (Some(&a), Some(&b)) => self.prims.get(a as usize..b as usize).is_some_and(|p| p.contains(&prim)),
-            _ => false,
+            (Some(&a), Some(&b)) => self.prims.get(a as usize..b as usize).unwrap_or(&[]),
+            _ => &[],
         }
     }
 
@@ -252,6 +356,11 @@ impl ClearView {
 
     /// How many (tile, triangle) pairs are clear.
     pub fn clear_pairs(&self) -> usize {
-        self.prims.len()
+        self.prims.iter().filter(|&&e| e & HIDDEN == 0).count()
+    }
+
+    /// How many (tile, triangle) pairs are hidden.
+    pub fn hidden_pairs(&self) -> usize {
+        self.prims.len() - self.clear_pairs()
     }
 }

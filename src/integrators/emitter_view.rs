@@ -39,7 +39,7 @@ use crate::detectors::film::{CameraModel, FilmBatch, PolygonImage};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::batch::{cancelled, BATCH_PHOTONS};
-use crate::integrators::clear_view::{meets, ClearView};
+use crate::integrators::clear_view::{contains, meets, ClearView};
 use crate::integrators::passage::is_passable;
 use crate::lights::Emitter;
 use crate::sampling::owen_sobol_2d;
@@ -351,28 +351,6 @@ fn in_view(
         };
     }
     seen
-}
-
-/// Whether the rectangle `rect` ([column lo, hi], [row lo, hi]) lies strictly inside the convex
-/// polygon `corners` (either orientation).
-fn contains(corners: &[[f64; 2]], rect: &([f64; 2], [f64; 2])) -> bool {
-    let n = corners.len();
-    let area: f64 = (0..n)
-        .map(|k| {
-            let (a, b) = (corners[k], corners[(k + 1) % n]);
-            a[0] * b[1] - b[0] * a[1]
-        })
-        .sum();
-    let rect_corners = [[rect.0[0], rect.1[0]], [rect.0[1], rect.1[0]], [rect.0[0], rect.1[1]], [rect.0[1], rect.1[1]]];
-    n >= 3
-        && area != 0.0
-        && (0..n).all(|k| {
-            let (a, b) = (corners[k], corners[(k + 1) % n]);
-            rect_corners.iter().all(|p| {
-                let cross = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
-                cross * area.signum() > 0.0
-            })
-        })
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@ use crate::bsdf::{Bsdf, Mode, Prepared};
 use crate::detectors::film::{CameraModel, FilmBatch};
 use crate::detectors::tally::{HistoryScores, RayArrival, Tallies};
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
-use crate::integrators::clear_view::ClearView;
+use crate::integrators::clear_view::{ClearView, Sight};
 use crate::integrators::emitter_view::EmitterView;
 use crate::integrators::passage::{self, is_passable, Through};
 use crate::lights::{Birth, EmitSample, Emitter, EMIT_DIMS};
@@ -1005,8 +1005,8 @@ fn collision_point(geo: &Geometry, h: &crate::geometry::Hit, dir: Vec3A, gap: f6
 /// Connects a photon vertex at `p` (error bound `err`, normal `n`, zero for a point light) to the
 /// camera and adds `value(ω)·importance` to its pixel when nothing is in between. `value(ω)` is
 /// the XYZ-weighted emission pdf or BSDF·|cos| toward the camera (see `film` for the estimator).
-/// Where the camera's clear view vouches for the point no ray is cast; `shadow_rays` counts the
-/// connections tested either way.
+/// Where the camera's clear view knows the point seen or hidden no ray is cast; `shadow_rays`
+/// counts the connections tested either way.
 #[inline]
 fn splat(
     cam: &CameraModel,
@@ -1022,7 +1022,12 @@ fn splat(
         return;
     }
     film.shadow_rays += 1;
-    if clear.is_some_and(|c| c.is_clear(&proj, start.prim)) || geo.visible(start, RayEnd::free(cam.position)) {
+    let seen = match clear.map_or(Sight::Unknown, |c| c.judge(&proj, start.prim)) {
+        Sight::Clear => true,
+        Sight::Hidden => false,
+        Sight::Unknown => geo.visible(start, RayEnd::free(cam.position)),
+    };
+    if seen {
         film.add(proj.pixel, v * proj.importance);
     }
 }

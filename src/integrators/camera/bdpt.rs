@@ -26,6 +26,7 @@ use crate::bsdf::{Bsdf, Mode};
 use crate::detectors::film::FilmBatch;
 use crate::detectors::tally::Counters;
 use crate::geometry::{RayEnd, NO_PRIM};
+use crate::integrators::clear_view::Sight;
 use crate::media;
 use crate::media::fluorescence;
 use crate::sampling::Sampler;
@@ -534,7 +535,8 @@ impl ImageKernel<'_> {
             let cam = self.camera.position;
             let end = qs.end();
             // Seen clear, the segment crosses nothing: it lies in the camera's medium (none).
-            if self.clear.as_ref().is_some_and(|v| v.is_clear(&proj, end.prim)) {
+            let sight = self.clear.as_ref().map_or(Sight::Unknown, |v| v.judge(&proj, end.prim));
+            if sight == Sight::Clear {
                 return Some((c, light, Some(proj.pixel)));
             }
             if let Some(through) = self.through() {
@@ -547,7 +549,13 @@ impl ImageKernel<'_> {
                 let t = self.transmittance_through::<SPECTRAL>(through, end, RayEnd::free(cam), medium, &at)?;
                 return Some((c * t, light, Some(proj.pixel)));
             }
-            self.geo().visible(end, RayEnd::free(cam)).then_some((c, light, Some(proj.pixel)))
+            // Hidden holds for a plain visibility test (the blocker may be a boundary that the
+            // way through above passes).
+            (sight != Sight::Hidden && self.geo().visible(end, RayEnd::free(cam))).then_some((
+                c,
+                light,
+                Some(proj.pixel),
+            ))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {
