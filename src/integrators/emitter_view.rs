@@ -28,7 +28,8 @@
 //!
 //! Most samples need no ray: where a pixel's footprint, widened by rounding, misses every
 //! eligible light's image, or lies inside one light triangle's image with nothing in front of it
-//! (the camera's `ClearView`), the ray's result is known (`in_view`), and is used bit for bit.
+//! (the camera's `ClearView`), the ray's result is known (`in_view`), and is used: bit for bit
+//! what the ray finds, short of two surfaces both within rounding of the lamp's plane.
 //!
 //! A sample that comes out non-finite (a lamp whose radiance overflows f32) is counted as black,
 //! as the camera integrators' samples are.

@@ -551,11 +551,8 @@ impl ImageKernel<'_> {
             }
             // Hidden holds for a plain visibility test (the blocker may be a boundary that the
             // way through above passes).
-            (sight != Sight::Hidden && self.geo().visible(end, RayEnd::free(cam))).then_some((
-                c,
-                light,
-                Some(proj.pixel),
-            ))
+            let seen = sight != Sight::Hidden && self.geo().visible(end, RayEnd::free(cam));
+            seen.then_some((c, light, Some(proj.pixel)))
         } else {
             let pt = &cv[t - 1];
             if !self.connectible(pt) {
