@@ -359,7 +359,7 @@ mod tests {
     use super::*;
     use crate::sampling::Sampler;
 
-    /// The bundled Cornell box's scene file, with `edit` applied (which must change it).
+    /// The bundled Cornell box's scene file with `edit` applied to its text.
     fn cornell(edit: impl Fn(&str) -> String) -> Scene {
         let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/scenes");
         let text = std::fs::read_to_string(format!("{dir}/cornell_box.toml")).unwrap();
