@@ -194,12 +194,13 @@ impl CameraModel {
         [span(self.half_w, self.width), span(self.half_h, self.height)]
     }
 
-    /// Pixels that `project`'s f32 arithmetic may move a point's image, given its difference
-    /// from the eye v (rounded to within ε of each coordinate): col = (v·c)/z + w/2 with c of
-    /// length ppu (pixels per unit) and z = v·f carries at most γ₃·ppu·|v|/z from v·c,
-    /// |col − w/2|·(γ₃·|v|/z + 2ε) from z and the quotient, and ε·w from the sum. With
-    /// |v|/z = 1/cosθ ≤ 1 + a + b and |col − w/2| ≤ ppu·a (a, b the half field's tangents), all
-    /// of it is below (γ₃ + 4ε)·ppu·(1 + a + b)² < 10⁻⁶·ppu·(1 + a + b)². Rows alike.
+    /// Pixels that `project`'s f32 arithmetic may move a point's image: col = (v·c)/z + w/2, with
+    /// v the point's difference from the eye (each coordinate rounded, relative ε), c of length
+    /// ppu (pixels per unit) and z = v·f. v's rounding moves the image by ≤ ε·ppu·(|v|/z)·(1 + a),
+    /// v·c's by γ₃·ppu·|v|/z, z's and the quotient's by |col − w/2|·(γ₃·|v|/z + 2ε), the sum by
+    /// ε·w. With |v|/z = 1/cosθ ≤ 1 + a + b and |col − w/2| ≤ ppu·a (a, b the half field's
+    /// tangents), all of it is below (γ₄ + 5ε)·ppu·(1 + a + b)² < 10⁻⁶·ppu·(1 + a + b)². Rows
+    /// alike.
     pub fn image_rounding(&self) -> f64 {
         let (a, b) = (self.half_w as f64, self.half_h as f64);
         1e-6 * self.pixels_per_unit() * (1.0 + a + b).powi(2)

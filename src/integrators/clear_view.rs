@@ -170,7 +170,8 @@ impl ClearView {
         }
         // What rounding may move a point's image (`project`, which picks its tile) or a camera
         // ray's direction (`EmitterView` asks about the pixels its rays pass through).
-        let [mx, my] = cam.direction_rounding().map(|r| r + cam.image_rounding());
+        // Twice the direction's: its bound is stated with about 2× to spare.
+        let [mx, my] = cam.direction_rounding().map(|r| 2.0 * r + cam.image_rounding());
         let (wx, wy) = (mx + spread, my + spread);
 
         let (tiles_wide, tiles_high) = (cam.width.div_ceil(TILE), cam.height.div_ceil(TILE));
@@ -357,10 +358,5 @@ impl ClearView {
     /// How many (tile, triangle) pairs are clear.
     pub fn clear_pairs(&self) -> usize {
         self.prims.iter().filter(|&&e| e & HIDDEN == 0).count()
-    }
-
-    /// How many (tile, triangle) pairs are hidden.
-    pub fn hidden_pairs(&self) -> usize {
-        self.prims.len() - self.clear_pairs()
     }
 }
