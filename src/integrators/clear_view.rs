@@ -55,6 +55,25 @@ pub struct ClearView {
 /// A rectangle of the image in continuous pixel coordinates: [column lo, hi], [row lo, hi].
 pub type Rect = ([f64; 2], [f64; 2]);
 
+/// The lowest and highest [column, row] of an image's corners.
+pub fn bounds(corners: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    corners.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), c| {
+        ([lo[0].min(c[0]), lo[1].min(c[1])], [hi[0].max(c[0]), hi[1].max(c[1])])
+    })
+}
+
+/// Whether some triangle u ≠ t of `list` passes `test` with its part `part(u)` as seen from t,
+/// each part made once per (t, u) in `cache`.
+fn any_other<P>(
+    list: &[u32],
+    t: u32,
+    cache: &mut HashMap<(u32, u32), Option<P>>,
+    part: impl Fn(u32) -> Option<P>,
+    test: impl Fn(&P) -> bool,
+) -> bool {
+    list.iter().any(|&u| u != t && cache.entry((t, u)).or_insert_with(|| part(u)).as_ref().is_some_and(&test))
+}
+
 /// Whether a polygon's image meets `rect` (separating axes: the rectangle's two and the
 /// polygon's edge normals; the image of a convex polygon in front of the eye is convex).
 pub fn meets(image: &PolygonImage, rect: &Rect) -> bool {
@@ -62,9 +81,7 @@ pub fn meets(image: &PolygonImage, rect: &Rect) -> bool {
         PolygonImage::Anywhere => return true,
         PolygonImage::Corners(corners, _) => corners,
     };
-    let (lo, hi) = corners.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), c| {
-        ([lo[0].min(c[0]), lo[1].min(c[1])], [hi[0].max(c[0]), hi[1].max(c[1])])
-    });
+    let (lo, hi) = bounds(corners);
     if hi[0] < rect.0[0] || lo[0] > rect.0[1] || hi[1] < rect.1[0] || lo[1] > rect.1[1] {
         return false;
     }
@@ -188,9 +205,7 @@ impl ClearView {
             let (cols, rows) = match image {
                 PolygonImage::Anywhere => ([0, tiles_wide - 1], [0, tiles_high - 1]),
                 PolygonImage::Corners(c, _) => {
-                    let (lo, hi) = c.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), c| {
-                        ([lo[0].min(c[0]), lo[1].min(c[1])], [hi[0].max(c[0]), hi[1].max(c[1])])
-                    });
+                    let (lo, hi) = bounds(c);
                     let tile = |x: f64, n: usize| ((x / TILE as f64).floor().max(0.0) as usize).min(n - 1);
                     (
                         [tile(lo[0] - wx, tiles_wide), tile(hi[0] + wx, tiles_wide)],
@@ -262,42 +277,39 @@ impl ClearView {
                 if planes[t as usize].2 == 0.0 || matches!(images[t as usize], Some(PolygonImage::Anywhere)) {
                     continue;
                 }
-                let blocked = list.iter().any(|&u| {
-                    u != t
-                        && blockers
-                            .entry((t, u))
-                            .or_insert_with(|| {
-                                let (o, normal, side, floor) = planes[t as usize];
-                                // A part nearer the eye than every whole image: `spread` does not
-                                // cover its rounding, so it may be anywhere.
-                                match cam.polygon_image(&clip_to_side(&tris[u as usize], o, normal, side, floor)) {
-                                    Some(PolygonImage::Corners(_, z)) if !(z >= near) => Some(PolygonImage::Anywhere),
-                                    image => image,
-                                }
-                            })
-                            .as_ref()
-                            .is_some_and(|image| meets(image, &rect))
-                });
+                let (o, normal, side, floor) = planes[t as usize];
+                let blocked = any_other(
+                    list,
+                    t,
+                    &mut blockers,
+                    |u| {
+                        // A part nearer the eye than every whole image: `spread` does not cover
+                        // its rounding, so it may be anywhere.
+                        match cam.polygon_image(&clip_to_side(&tris[u as usize], o, normal, side, floor)) {
+                            Some(PolygonImage::Corners(_, z)) if !(z >= near) => Some(PolygonImage::Anywhere),
+                            image => image,
+                        }
+                    },
+                    |image| meets(image, &rect),
+                );
                 if !blocked {
                     prims.push(t);
                     continue;
                 }
-                let hides = list.iter().any(|&u| {
-                    u != t
-                        && hiders
-                            .entry((t, u))
-                            .or_insert_with(|| {
-                                let (o, normal, side, _) = planes[t as usize];
-                                let (lo, hi) = tested[t as usize];
-                                let slab = clip_to_side(&tris[u as usize], o, normal, side, lo);
-                                match cam.polygon_image(&clip_to_side(&slab, o, normal, -side, -hi)) {
-                                    Some(PolygonImage::Corners(c, z)) if z >= near => Some(c),
-                                    _ => None,
-                                }
-                            })
-                            .as_ref()
-                            .is_some_and(|image| contains(image, &rect))
-                });
+                let (lo, hi) = tested[t as usize];
+                let hides = any_other(
+                    list,
+                    t,
+                    &mut hiders,
+                    |u| {
+                        let slab = clip_to_side(&tris[u as usize], o, normal, side, lo);
+                        match cam.polygon_image(&clip_to_side(&slab, o, normal, -side, -hi)) {
+                            Some(PolygonImage::Corners(c, z)) if z >= near => Some(c),
+                            _ => None,
+                        }
+                    },
+                    |image| contains(image, &rect),
+                );
                 if hides {
                     prims.push(t | HIDDEN);
                 }
@@ -305,13 +317,6 @@ impl ClearView {
         }
         start.push(prims.len() as u32);
         Some(ClearView { tiles_wide, spread, start, prims })
-    }
-
-    /// Whether a point of triangle `prim` with projection `proj` is seen by the eye with nothing
-    /// in between (false: unknown, cast the ray).
-    #[inline(always)]
-    pub fn is_clear(&self, proj: &Projection, prim: u32) -> bool {
-        self.is_clear_in(proj.col as usize, proj.row as usize, prim)
     }
 
     /// Whether every point of triangle `prim` that pixel (`col`, `row`) sees is seen by the eye

@@ -42,7 +42,7 @@ use crate::detectors::film::{CameraModel, FilmBatch, PolygonImage};
 use crate::detectors::tally::Counters;
 use crate::geometry::{Geometry, RayEnd, NO_PRIM};
 use crate::integrators::batch::{cancelled, BATCH_PHOTONS};
-use crate::integrators::clear_view::{contains, meets, ClearView};
+use crate::integrators::clear_view::{bounds, contains, meets, ClearView};
 use crate::integrators::passage::is_passable;
 use crate::lights::Emitter;
 use crate::sampling::owen_sobol_2d;
@@ -305,17 +305,19 @@ fn in_view(
     let footprint = |col: usize, row: usize| -> ([f64; 2], [f64; 2]) {
         ([col as f64 - mx, col as f64 + 1.0 + mx], [row as f64 - my, row as f64 + 1.0 + my])
     };
-    for prim in 0..geo.len() {
-        if surface_light[geo.surface_of(prim) as usize].is_none() {
-            continue;
-        }
-        let Some(image) = camera.polygon_image(&geo.verts(prim).map(|v| v.as_dvec3())) else { continue };
-        let ([c0, c1], [r0, r1]) = match &image {
+    // The eligible light triangles' images, each made once.
+    let images: Vec<Option<PolygonImage>> = (0..geo.len())
+        .map(|prim| {
+            surface_light[geo.surface_of(prim) as usize]
+                .and_then(|_| camera.polygon_image(&geo.verts(prim).map(|v| v.as_dvec3())))
+        })
+        .collect();
+    for (prim, image) in images.iter().enumerate() {
+        let Some(image) = image else { continue };
+        let ([c0, c1], [r0, r1]) = match image {
             PolygonImage::Anywhere => ([0, camera.width - 1], [0, camera.height - 1]),
             PolygonImage::Corners(corners, _) => {
-                let (lo, hi) = corners.iter().fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), c| {
-                    ([lo[0].min(c[0]), lo[1].min(c[1])], [hi[0].max(c[0]), hi[1].max(c[1])])
-                });
+                let (lo, hi) = bounds(corners);
                 let index = |x: f64, n: usize| (x.floor().max(0.0) as usize).min(n - 1);
                 (
                     [index(lo[0] - mx - 1.0, camera.width), index(hi[0] + mx + 1.0, camera.width)],
@@ -328,7 +330,7 @@ fn in_view(
             let (Ok(b) | Err(b)) = pixels.binary_search(&((row * camera.width + c1 + 1) as u32));
             for k in a..b {
                 let col = pixels[k] as usize % camera.width;
-                if meets(&image, &footprint(col, row)) {
+                if meets(image, &footprint(col, row)) {
                     meeting[k] = match meeting[k] {
                         Some(None) => Some(Some(prim as u32)),
                         _ => None,
@@ -342,11 +344,10 @@ fn in_view(
         seen[k] = match *m {
             Some(None) => Seen::Nothing,
             Some(Some(prim)) => {
-                let image = camera.polygon_image(&geo.verts(prim as usize).map(|v| v.as_dvec3()));
                 let light = surface_light[geo.surface_of(prim as usize) as usize];
-                match (image, light) {
+                match (&images[prim as usize], light) {
                     (Some(PolygonImage::Corners(corners, _)), Some(light))
-                        if contains(&corners, &footprint(col, row)) && clear.is_clear_in(col, row, prim) =>
+                        if contains(corners, &footprint(col, row)) && clear.is_clear_in(col, row, prim) =>
                     {
                         Seen::Light { prim, light: light as u32 }
                     }
